@@ -1,0 +1,73 @@
+# AgNav: two commands do everything on a fresh Debian machine.
+#   make demo   install what is missing, then run the default mission
+#   make test   install what is missing, then every test suite, ending "N passed, N failed"
+#   make setup  only the installing (both of the above call it; idempotent)
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+VENV        := .venv
+PY          := $(VENV)/bin/python
+PIO         := $(VENV)/bin/pio
+export PLATFORMIO_CORE_DIR := $(CURDIR)/.pio-core
+export PLATFORMIO_DISABLE_UPGRADE_CHECK := true
+export PLATFORMIO_NO_ANSI := true
+export PLATFORMIO_SETTING_ENABLE_TELEMETRY := No
+export PLATFORMIO_SETTING_CHECK_PLATFORMIO_INTERVAL := 3650
+
+APT_PACKAGES := gcc-avr avr-libc avrdude simavr libsimavr-dev libelf-dev \
+                gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm \
+                binutils-avr pkg-config
+
+.PHONY: help setup apt venv tools demo test test-host test-firmware size bench clean
+
+help:
+	@echo "make demo   - install what is missing, run the default mission (output in out/demo)"
+	@echo "make test   - install what is missing, run every test suite"
+	@echo "make setup  - only install (Debian packages, .venv, PlatformIO offline pieces)"
+	@echo "make size   - AVR flash/RAM use of the firmware (avr-size)"
+	@echo "make bench  - benchmarks (figures go to BENCHMARKS.md by hand)"
+
+setup: apt venv tools
+
+# Debian packages: installed only when one is missing (a second run installs nothing).
+apt:
+	@missing=$$(for p in $(APT_PACKAGES); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "setup: installing Debian packages:" $$missing; \
+	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q --no-install-recommends $$missing; \
+	fi
+
+venv: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml requirements-lock.txt
+	@test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check -r requirements-lock.txt
+	$(PY) -m pip install -q --disable-pip-version-check --no-deps -e .
+	@touch $@
+
+tools: build/bin/avr_harness
+
+build/bin/avr_harness: hil/simavr/avr_harness.c
+	@mkdir -p build/bin
+	cc -O2 -Wall -Wextra -o $@ $< -lsimavr -lelf
+
+demo: setup
+	$(VENV)/bin/agnav sim --out out/demo
+
+test: setup
+	@bash tools/run_all_tests.sh
+
+test-host: setup
+	$(VENV)/bin/pytest -q
+
+test-firmware: setup
+	$(PIO) test -e native
+
+size: setup
+	$(PIO) run -s -e megaatmega2560
+	avr-size -A -d .pio/build/megaatmega2560/firmware.elf
+	avr-size .pio/build/megaatmega2560/firmware.elf
+
+clean:
+	rm -rf .pio build out

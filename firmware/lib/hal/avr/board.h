@@ -1,0 +1,22 @@
+/*
+ * Pin map of the AgNav controller on an ATmega2560 (Arduino Mega 2560 headers).
+ * Only this file and hal_avr.c know pin numbers.
+ *
+ *   link UART         USART0  D0 RX / D1 TX (USB or XBee, 57600 baud)
+ *   time base         Timer5, clk/8 = 0.5 us ticks, 16-bit overflow extended in software
+ *   steering servo    Timer3 OC3A = PE3 (D5), 50 Hz, 1000-2000 us
+ *   ESC / throttle    Timer3 OC3B = PE4 (D2), 50 Hz, 1000-2000 us
+ *   H-bridge PWM      Timer4 OC4A = PH3 (D6) left, OC4B = PH4 (D7) right, 8-bit duty
+ *   H-bridge DIR      PH5 (D8) left, PH6 (D9) right
+ *   encoders          PORTK (A8..A15), PCINT2: encoder i has A on PK(2i), B on PK(2i+1)
+ *   sonar triggers    PA0..PA7 (D22..D29) sonars 0..7, PC0..PC3 (D37..D34) sonars 8..11
+ *   sonar echoes      PB0..PB7 (D53, D52, D51, D50, D10, D11, D12, D13) sonars 0..7 via PCINT0,
+ *                     PD0..PD3 (D21, D20, D19, D18) sonars 8..11 via INT0..INT3
+ */
+#ifndef AGNAV_BOARD_AVR_H
+#define AGNAV_BOARD_AVR_H
+
+#define BOARD_LINK_UART_BAUD_DEFAULT 57600UL
+#define BOARD_TIMER_TICKS_PER_US 2u
+
+#endif

@@ -1,0 +1,319 @@
+/* ATmega2560 backend of the AgNav HAL. Pin map: board.h. */
+#if defined(__AVR__)
+
+#include "../hal.h"
+#include "board.h"
+
+#include <avr/eeprom.h>
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <avr/wdt.h>
+#include <util/delay.h>
+
+/* ---- time: Timer5 free-running at 2 MHz ------------------------------- */
+static volatile uint16_t s_time_overflows;
+static uint8_t s_reset_flags;
+
+/* The reset cause must be read (and MCUSR cleared) before the watchdog can
+ * reset the part again; .init3 runs before main. */
+void hal_avr_save_reset_cause(void) __attribute__((naked, used, section(".init3")));
+void hal_avr_save_reset_cause(void)
+{
+    s_reset_flags = MCUSR;
+    MCUSR = 0;
+    wdt_disable();
+}
+
+ISR(TIMER5_OVF_vect) { s_time_overflows++; }
+
+static uint32_t ticks_now(void)
+{
+    uint8_t sreg = SREG;
+    cli();
+    uint16_t hi = s_time_overflows;
+    uint16_t lo = TCNT5;
+    if ((TIFR5 & (1u << TOV5)) && lo < 0x8000u) {
+        hi++; /* overflow pending, not yet serviced */
+    }
+    SREG = sreg;
+    return ((uint32_t)hi << 16) | lo;
+}
+
+uint32_t hal_time_us(void) { return ticks_now() / BOARD_TIMER_TICKS_PER_US; }
+uint32_t hal_time_ms(void) { return hal_time_us() / 1000u; }
+
+void hal_delay_us(uint16_t us)
+{
+    uint32_t start = hal_time_us();
+    while ((uint32_t)(hal_time_us() - start) < us) {
+    }
+}
+
+hal_irq_state_t hal_irq_save(void)
+{
+    hal_irq_state_t s = SREG;
+    cli();
+    return s;
+}
+
+void hal_irq_restore(hal_irq_state_t s) { SREG = s; }
+
+/* ---- UART0: interrupt-driven TX ring, RX ring ------------------------- */
+#define UART_TX_SIZE 256u /* power of two: uint8_t indexes wrap by themselves */
+#define UART_RX_SIZE 128u
+static uint8_t s_tx[UART_TX_SIZE];
+static volatile uint8_t s_tx_head, s_tx_tail;
+static uint8_t s_rx[UART_RX_SIZE];
+static volatile uint8_t s_rx_head, s_rx_tail;
+
+ISR(USART0_RX_vect)
+{
+    uint8_t b = UDR0;
+    uint8_t next = (uint8_t)((s_rx_head + 1u) & (UART_RX_SIZE - 1u));
+    if (next != s_rx_tail) {
+        s_rx[s_rx_head] = b;
+        s_rx_head = next;
+    }
+}
+
+ISR(USART0_UDRE_vect)
+{
+    if (s_tx_head == s_tx_tail) {
+        UCSR0B &= (uint8_t)~(1u << UDRIE0);
+        return;
+    }
+    UDR0 = s_tx[s_tx_tail];
+    s_tx_tail = (uint8_t)(s_tx_tail + 1u);
+}
+
+void hal_uart_init(uint8_t port, uint32_t baud)
+{
+    if (port != HAL_UART_LINK) {
+        return;
+    }
+    uint16_t ubrr = (uint16_t)((F_CPU / 8u / baud) - 1u);
+    UBRR0 = ubrr;
+    UCSR0A = (uint8_t)(1u << U2X0);
+    UCSR0C = (uint8_t)((1u << UCSZ01) | (1u << UCSZ00));
+    UCSR0B = (uint8_t)((1u << RXEN0) | (1u << TXEN0) | (1u << RXCIE0));
+}
+
+uint16_t hal_uart_tx_space(uint8_t port)
+{
+    if (port != HAL_UART_LINK) {
+        return 0u;
+    }
+    return (uint16_t)(UART_TX_SIZE - 1u - (uint8_t)(s_tx_head - s_tx_tail));
+}
+
+uint16_t hal_uart_write(uint8_t port, const uint8_t *data, uint16_t len)
+{
+    if (port != HAL_UART_LINK) {
+        return 0u;
+    }
+    uint16_t n = 0;
+    while (n < len && (uint8_t)(s_tx_head + 1u) != s_tx_tail) {
+        s_tx[s_tx_head] = data[n++];
+        s_tx_head = (uint8_t)(s_tx_head + 1u);
+    }
+    UCSR0B |= (uint8_t)(1u << UDRIE0);
+    return n;
+}
+
+uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
+{
+    if (port != HAL_UART_LINK) {
+        return 0u;
+    }
+    uint16_t n = 0;
+    while (n < max && s_rx_tail != s_rx_head) {
+        data[n++] = s_rx[s_rx_tail];
+        s_rx_tail = (uint8_t)((s_rx_tail + 1u) & (UART_RX_SIZE - 1u));
+    }
+    return n;
+}
+
+/* ---- encoders: PORTK pin-change interrupt ----------------------------- */
+static hal_encoder_edge_fn s_encoder_fn;
+static uint8_t s_encoder_mask;
+static uint8_t s_pink_last;
+
+ISR(PCINT2_vect)
+{
+    uint8_t now = PINK;
+    uint8_t changed = (uint8_t)((now ^ s_pink_last) & s_encoder_mask);
+    s_pink_last = now;
+    if (changed == 0u || s_encoder_fn == 0) {
+        return;
+    }
+    uint32_t t = hal_time_us();
+    for (uint8_t i = 0; i < HAL_ENCODER_MAX; i++) {
+        if (changed & (uint8_t)(3u << (2u * i))) {
+            s_encoder_fn(i, (uint8_t)(((now >> (2u * i)) & 1u) << 1 | ((now >> (2u * i + 1u)) & 1u)), t);
+        }
+    }
+}
+
+void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
+{
+    if (count > HAL_ENCODER_MAX) {
+        count = HAL_ENCODER_MAX;
+    }
+    s_encoder_mask = (uint8_t)((1u << (2u * count)) - 1u);
+    DDRK &= (uint8_t)~s_encoder_mask;
+    PORTK |= s_encoder_mask; /* pull-ups for open-collector Hall sensors */
+    s_pink_last = PINK;
+    s_encoder_fn = fn;
+    PCMSK2 = s_encoder_mask;
+    PCICR |= (uint8_t)(1u << PCIE2);
+}
+
+/* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 --- */
+static hal_echo_edge_fn s_echo_fn;
+static uint8_t s_sonar_count;
+static uint8_t s_pinb_last;
+
+ISR(PCINT0_vect)
+{
+    uint8_t now = PINB;
+    uint8_t changed = (uint8_t)(now ^ s_pinb_last);
+    s_pinb_last = now;
+    if (s_echo_fn == 0) {
+        return;
+    }
+    uint32_t t = hal_time_us();
+    for (uint8_t i = 0; i < 8u && i < s_sonar_count; i++) {
+        if (changed & (uint8_t)(1u << i)) {
+            s_echo_fn(i, (uint8_t)((now >> i) & 1u), t);
+        }
+    }
+}
+
+#define ECHO_EXT_ISR(vect, bit, idx)                                            \
+    ISR(vect)                                                                   \
+    {                                                                           \
+        if (s_echo_fn != 0) {                                                   \
+            s_echo_fn((idx), (uint8_t)((PIND >> (bit)) & 1u), hal_time_us());   \
+        }                                                                       \
+    }
+ECHO_EXT_ISR(INT0_vect, 0, 8u)
+ECHO_EXT_ISR(INT1_vect, 1, 9u)
+ECHO_EXT_ISR(INT2_vect, 2, 10u)
+ECHO_EXT_ISR(INT3_vect, 3, 11u)
+
+void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
+{
+    if (count > HAL_SONAR_MAX) {
+        count = HAL_SONAR_MAX;
+    }
+    s_sonar_count = count;
+    s_echo_fn = fn;
+    uint8_t low = count >= 8u ? 0xFFu : (uint8_t)((1u << count) - 1u);
+    uint8_t high = count > 8u ? (uint8_t)((1u << (count - 8u)) - 1u) : 0u;
+    DDRA |= low;           /* triggers 0..7 */
+    DDRC |= high;          /* triggers 8..11 */
+    DDRB &= (uint8_t)~low; /* echoes 0..7 */
+    DDRD &= (uint8_t)~high;
+    s_pinb_last = PINB;
+    PCMSK0 = low;
+    PCICR |= (uint8_t)(1u << PCIE0);
+    EICRA = 0x55u; /* INT0..3 on any edge */
+    EIMSK |= high;
+}
+
+void hal_sonar_trigger(uint8_t idx)
+{
+    if (idx < 8u) {
+        PORTA |= (uint8_t)(1u << idx);
+        hal_delay_us(10u);
+        PORTA &= (uint8_t)~(1u << idx);
+    } else if (idx < HAL_SONAR_MAX) {
+        PORTC |= (uint8_t)(1u << (idx - 8u));
+        hal_delay_us(10u);
+        PORTC &= (uint8_t)~(1u << (idx - 8u));
+    }
+}
+
+/* ---- actuators -------------------------------------------------------- */
+void hal_servo_write_us(uint8_t channel, uint16_t pulse_us)
+{
+    if (pulse_us < 800u) {
+        pulse_us = 800u;
+    } else if (pulse_us > 2200u) {
+        pulse_us = 2200u;
+    }
+    uint16_t ticks = (uint16_t)(pulse_us * BOARD_TIMER_TICKS_PER_US);
+    if (channel == HAL_SERVO_STEER) {
+        OCR3A = ticks;
+    } else if (channel == HAL_SERVO_THROTTLE) {
+        OCR3B = ticks;
+    }
+}
+
+void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse)
+{
+    if (channel == 0u) {
+        OCR4A = duty;
+        if (reverse) PORTH |= (uint8_t)(1u << PH5); else PORTH &= (uint8_t)~(1u << PH5);
+    } else if (channel == 1u) {
+        OCR4B = duty;
+        if (reverse) PORTH |= (uint8_t)(1u << PH6); else PORTH &= (uint8_t)~(1u << PH6);
+    }
+}
+
+/* ---- EEPROM ----------------------------------------------------------- */
+uint16_t hal_eeprom_size(void) { return (uint16_t)(E2END + 1u); }
+
+void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len)
+{
+    eeprom_read_block(dst, (const void *)(uintptr_t)addr, len);
+}
+
+void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
+{
+    eeprom_update_block(src, (void *)(uintptr_t)addr, len); /* writes only changed bytes */
+}
+
+/* ---- watchdog --------------------------------------------------------- */
+void hal_watchdog_start(uint16_t timeout_ms)
+{
+    uint8_t prescale = timeout_ms >= 1000u ? WDTO_1S : timeout_ms >= 500u ? WDTO_500MS
+                     : timeout_ms >= 250u ? WDTO_250MS : WDTO_120MS;
+    wdt_enable(prescale);
+}
+
+void hal_watchdog_kick(void) { wdt_reset(); }
+
+hal_reset_cause_t hal_reset_cause(void)
+{
+    if (s_reset_flags & (1u << WDRF)) return HAL_RESET_WATCHDOG;
+    if (s_reset_flags & (1u << BORF)) return HAL_RESET_BROWN_OUT;
+    if (s_reset_flags & (1u << EXTRF)) return HAL_RESET_EXTERNAL;
+    if (s_reset_flags & (1u << PORF)) return HAL_RESET_POWER_ON;
+    return HAL_RESET_OTHER;
+}
+
+/* ---- init ------------------------------------------------------------- */
+void hal_init(void)
+{
+    /* Timer5: normal mode, clk/8 -> 2 MHz; overflow extends to 32 bits. */
+    TCCR5A = 0;
+    TCCR5B = (uint8_t)(1u << CS51);
+    TIMSK5 = (uint8_t)(1u << TOIE5);
+    /* Timer3: fast PWM mode 14, TOP = ICR3 = 20 ms at 2 MHz, OC3A/OC3B non-inverting. */
+    DDRE |= (uint8_t)((1u << PE3) | (1u << PE4));
+    ICR3 = 40000u;
+    OCR3A = 3000u;
+    OCR3B = 3000u;
+    TCCR3A = (uint8_t)((1u << COM3A1) | (1u << COM3B1) | (1u << WGM31));
+    TCCR3B = (uint8_t)((1u << WGM33) | (1u << WGM32) | (1u << CS31));
+    /* Timer4: 8-bit fast PWM for H-bridges, ~7.8 kHz; direction lines PH5, PH6. */
+    DDRH |= (uint8_t)((1u << PH3) | (1u << PH4) | (1u << PH5) | (1u << PH6));
+    OCR4A = 0;
+    OCR4B = 0;
+    TCCR4A = (uint8_t)((1u << COM4A1) | (1u << COM4B1) | (1u << WGM40));
+    TCCR4B = (uint8_t)((1u << WGM42) | (1u << CS41));
+    sei();
+}
+
+#endif /* __AVR__ */

@@ -1,0 +1,99 @@
+/*
+ * AgNav hardware abstraction layer: the one interface every firmware module
+ * talks to. Three backends implement it:
+ *   avr/   ATmega2560 timers, pin-change interrupts, USART, EEPROM, watchdog
+ *   stm32/ STM32F405 registers (USART1, TIM2, GPIO) as modelled by QEMU netduinoplus2
+ *   sim/   driven by unit tests and by the software-in-the-loop harness
+ *
+ * Devices are addressed by logical index (encoder 0..3, sonar 0..11, servo
+ * channel 0..1); pin numbers only live in each backend's board.h.
+ * Interrupt hooks only timestamp and count: the callbacks registered here are
+ * called from interrupt context and must stay short.
+ */
+#ifndef AGNAV_HAL_H
+#define AGNAV_HAL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- life cycle and time ---------------------------------------------- */
+void hal_init(void);
+/* Monotonic microseconds since boot; wraps every 2^32 us (~71.6 min).
+ * Compare times with (int32_t)(a - b), never with a < b. */
+uint32_t hal_time_us(void);
+uint32_t hal_time_ms(void);
+/* Busy-wait, used only for the 10 us sonar trigger pulse. */
+void hal_delay_us(uint16_t us);
+
+/* ---- critical sections ------------------------------------------------ */
+#if defined(__AVR__)
+typedef uint8_t hal_irq_state_t;
+#else
+typedef uint32_t hal_irq_state_t;
+#endif
+hal_irq_state_t hal_irq_save(void);     /* mask interrupts, return previous state */
+void hal_irq_restore(hal_irq_state_t s); /* restore what hal_irq_save returned */
+
+/* ---- serial ----------------------------------------------------------- */
+#define HAL_UART_LINK 0u   /* telemetry radio (XBee) or USB serial */
+#define HAL_UART_DEBUG 1u  /* test output under simavr / QEMU */
+void hal_uart_init(uint8_t port, uint32_t baud);
+/* Queue up to len bytes; returns how many were accepted (never blocks). */
+uint16_t hal_uart_write(uint8_t port, const uint8_t *data, uint16_t len);
+/* Copy up to max received bytes into data; returns the count. */
+uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max);
+uint16_t hal_uart_tx_space(uint8_t port);
+
+/* ---- wheel encoders --------------------------------------------------- */
+#define HAL_ENCODER_MAX 4u
+/* Called from interrupt context on every edge of channel A or B of encoder
+ * idx. ab = (A << 1) | B, the levels just after the edge; t_us = hal_time_us().
+ * In single-channel (Hall) mode B reads as 0. */
+typedef void (*hal_encoder_edge_fn)(uint8_t idx, uint8_t ab, uint32_t t_us);
+void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn);
+
+/* ---- sonar ring (trigger/echo, HC-SR04 / SRF05 class) ----------------- */
+#define HAL_SONAR_MAX 12u
+/* Called from interrupt context on each edge of the echo line of sonar idx;
+ * level = 1 rising (echo started), 0 falling (echo ended). */
+typedef void (*hal_echo_edge_fn)(uint8_t idx, uint8_t level, uint32_t t_us);
+void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn);
+/* Emit the >= 10 us trigger pulse on sonar idx. */
+void hal_sonar_trigger(uint8_t idx);
+
+/* ---- actuators -------------------------------------------------------- */
+#define HAL_SERVO_STEER 0u  /* steering servo, 1000..2000 us */
+#define HAL_SERVO_THROTTLE 1u  /* ESC, 1000..2000 us, 1500 neutral */
+#define HAL_SERVO_MAX 2u
+void hal_servo_write_us(uint8_t channel, uint16_t pulse_us);
+/* 8-bit duty for an H-bridge (differential drive), channel 0 left, 1 right;
+ * reverse selects the direction line. */
+#define HAL_PWM_MAX 2u
+void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse);
+
+/* ---- non-volatile storage --------------------------------------------- */
+uint16_t hal_eeprom_size(void);
+void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len);
+void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len);
+
+/* ---- watchdog and reset cause ----------------------------------------- */
+typedef enum {
+    HAL_RESET_POWER_ON = 0,
+    HAL_RESET_WATCHDOG = 1,
+    HAL_RESET_EXTERNAL = 2,
+    HAL_RESET_BROWN_OUT = 3,
+    HAL_RESET_OTHER = 4
+} hal_reset_cause_t;
+void hal_watchdog_start(uint16_t timeout_ms);
+void hal_watchdog_kick(void);
+hal_reset_cause_t hal_reset_cause(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* AGNAV_HAL_H */

@@ -1,0 +1,51 @@
+/*
+ * Test and SIL side of the simulated HAL backend: the world (a unit test or
+ * the SIL harness) owns time and drives the pins through these calls.
+ */
+#ifndef AGNAV_HAL_SIM_H
+#define AGNAV_HAL_SIM_H
+
+#include "../hal.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SIM_EEPROM_SIZE 4096u
+#define SIM_UART_BUF 4096u
+
+void sim_reset(void);                    /* power-on state: time 0, buffers empty, EEPROM erased (0xFF) */
+void sim_time_set_us(uint32_t t_us);
+void sim_time_advance_us(uint32_t dt_us);
+void sim_set_reset_cause(hal_reset_cause_t cause);
+
+/* Inject an encoder edge at the current simulated time (calls the attached hook). */
+void sim_encoder_edge(uint8_t idx, uint8_t ab);
+/* Inject an echo edge on sonar idx at the current simulated time. */
+void sim_sonar_echo_edge(uint8_t idx, uint8_t level);
+/* Number of trigger pulses emitted on sonar idx since reset, and time of the last one. */
+uint32_t sim_sonar_trigger_count(uint8_t idx);
+uint32_t sim_sonar_last_trigger_us(uint8_t idx);
+/* Optional hook called on every trigger (the SIL uses it to schedule echoes). */
+typedef void (*sim_trigger_fn)(uint8_t idx, uint32_t t_us);
+void sim_sonar_on_trigger(sim_trigger_fn fn);
+
+uint16_t sim_servo_us(uint8_t channel);
+uint8_t sim_pwm_duty(uint8_t channel);
+bool sim_pwm_reverse(uint8_t channel);
+
+/* Bytes the firmware wrote to a UART (drained by the caller). */
+uint16_t sim_uart_take_tx(uint8_t port, uint8_t *dst, uint16_t max);
+/* Bytes for the firmware to read. Returns how many fitted. */
+uint16_t sim_uart_put_rx(uint8_t port, const uint8_t *src, uint16_t len);
+
+uint8_t *sim_eeprom_bytes(void);          /* direct access for corruption tests */
+uint32_t sim_watchdog_kicks(void);
+uint16_t sim_watchdog_timeout_ms(void);
+bool sim_irq_masked(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,113 @@
+"""SCons build script of the AgNav dev platform.
+
+Three kinds of board, told apart by board.json's build.target:
+  avr     ATmega2560 with Debian's gcc-avr / avr-libc; `-t upload` flashes with avrdude
+  arm     STM32F405 with Debian's gcc-arm-none-eabi / newlib; boots under QEMU netduinoplus2
+  native  the host gcc, for unit tests and the software-in-the-loop build
+"""
+from os.path import join
+
+from SCons.Script import AlwaysBuild, Builder, Default, DefaultEnvironment
+
+env = DefaultEnvironment()
+board = env.BoardConfig()
+target = board.get("build.target", "native")
+
+COMMON_CFLAGS = ["-std=gnu11"]
+COMMON_CCFLAGS = ["-Wall", "-Wextra", "-ffunction-sections", "-fdata-sections"]
+
+if target == "avr":
+    env.Replace(
+        AR="avr-gcc-ar", AS="avr-gcc", CC="avr-gcc", CXX="avr-g++", GDB="avr-gdb",
+        OBJCOPY="avr-objcopy", RANLIB="avr-gcc-ranlib", SIZETOOL="avr-size",
+        PROGNAME="firmware", PROGSUFFIX=".elf",
+        SIZEPROGREGEXP=r"^(?:\.text|\.data|\.bootloader)\s+(\d+).*",
+        SIZEDATAREGEXP=r"^(?:\.data|\.bss|\.noinit)\s+(\d+).*",
+        SIZECHECKCMD="$SIZETOOL -A -d $SOURCES",
+        SIZEPRINTCMD="$SIZETOOL -A -d $SOURCES",
+        UPLOADER="avrdude",
+        UPLOADERFLAGS=[
+            "-p", "$BOARD_MCU", "-c", "$UPLOAD_PROTOCOL", "-b", "$UPLOAD_SPEED",
+            "-D", "-P", '"$UPLOAD_PORT"',
+        ],
+        UPLOADCMD="$UPLOADER $UPLOADERFLAGS -U flash:w:$SOURCES:i",
+    )
+    mcu_flags = ["-mmcu=$BOARD_MCU"]
+    env.Append(
+        CFLAGS=COMMON_CFLAGS,
+        CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os"],
+        CPPDEFINES=[("F_CPU", "$BOARD_F_CPU")],
+        LINKFLAGS=mcu_flags + ["-Os", "-Wl,--gc-sections"],
+        BUILDERS=dict(
+            ElfToHex=Builder(
+                action=env.VerboseAction(
+                    "$OBJCOPY -O ihex -R .eeprom $SOURCES $TARGET", "Building $TARGET"
+                ),
+                suffix=".hex",
+            )
+        ),
+    )
+elif target == "arm":
+    env.Replace(
+        AR="arm-none-eabi-gcc-ar", AS="arm-none-eabi-gcc", CC="arm-none-eabi-gcc",
+        CXX="arm-none-eabi-g++", GDB="gdb-multiarch", OBJCOPY="arm-none-eabi-objcopy",
+        RANLIB="arm-none-eabi-gcc-ranlib", SIZETOOL="arm-none-eabi-size",
+        PROGNAME="firmware", PROGSUFFIX=".elf",
+        SIZEPROGREGEXP=r"^(?:\.text|\.data|\.rodata|\.isr_vector)\s+(\d+).*",
+        SIZEDATAREGEXP=r"^(?:\.data|\.bss|\.noinit)\s+(\d+).*",
+        SIZECHECKCMD="$SIZETOOL -A -d $SOURCES",
+        SIZEPRINTCMD="$SIZETOOL -A -d $SOURCES",
+    )
+    cpu_flags = [
+        "-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16",
+    ]
+    # PlatformIO passes board.json's build.ldscript to the linker as LDSCRIPT_PATH.
+    env.Replace(LDSCRIPT_PATH=join("$PROJECT_DIR", board.get("build.ldscript", "")))
+    env.Append(
+        CFLAGS=COMMON_CFLAGS,
+        CCFLAGS=COMMON_CCFLAGS + cpu_flags + ["-Os"],
+        ASFLAGS=cpu_flags,
+        CPPDEFINES=[("F_CPU", "$BOARD_F_CPU"), "STM32F405xx"],
+        LINKFLAGS=cpu_flags + [
+            "-Os", "-Wl,--gc-sections", "-nostartfiles", "--specs=nano.specs",
+        ],
+        LIBS=["c", "m", "gcc", "nosys"],
+        BUILDERS=dict(
+            ElfToBin=Builder(
+                action=env.VerboseAction("$OBJCOPY -O binary $SOURCES $TARGET", "Building $TARGET"),
+                suffix=".bin",
+            )
+        ),
+    )
+else:
+    env.Replace(PROGNAME="program", SIZETOOL="size", SIZEPRINTCMD="$SIZETOOL $SOURCES")
+    env.Append(
+        CFLAGS=COMMON_CFLAGS,
+        CCFLAGS=COMMON_CCFLAGS + ["-O1", "-g"],
+        LIBS=["m"],
+    )
+
+target_elf = env.BuildProgram()
+default_targets = [target_elf]
+
+if target == "avr":
+    target_hex = env.ElfToHex(join("$BUILD_DIR", "${PROGNAME}"), target_elf)
+    default_targets.append(target_hex)
+    env.AddPlatformTarget(
+        "upload",
+        target_hex,
+        [
+            env.VerboseAction(env.AutodetectUploadPort, "Looking for upload port..."),
+            env.VerboseAction("$UPLOADCMD", "Uploading $SOURCE"),
+        ],
+        "Upload",
+    )
+elif target == "arm":
+    default_targets.append(env.ElfToBin(join("$BUILD_DIR", "${PROGNAME}"), target_elf))
+
+env.AddPlatformTarget(
+    "size", target_elf, env.VerboseAction("$SIZEPRINTCMD", "Calculating size $SOURCE"),
+    "Program Size",
+)
+AlwaysBuild(env.Alias("nobuild", target_elf))
+Default(default_targets)
