@@ -1,5 +1,5 @@
 /* ATmega2560 backend of the AgNav HAL. Pin map: board.h. */
-#if defined(__AVR__)
+#if defined(__AVR__) && !defined(PIO_UNIT_TESTING)
 
 #include "../hal.h"
 #include "board.h"

@@ -1,6 +1,8 @@
-/* Simulated HAL backend: a world in software instead of a board. Built only
- * for the native environment (unit tests and the SIL). */
-#if !defined(__AVR__) && !defined(__arm__)
+/* Simulated HAL backend: a world in software instead of a board. Built for the
+ * native environment (unit tests and the SIL) and for unit-test builds on every
+ * target, so the same module tests run natively, under simavr and under QEMU;
+ * the real avr/stm32 backends are exercised by the whole-firmware tests. */
+#if (!defined(__AVR__) && !defined(__arm__)) || defined(PIO_UNIT_TESTING)
 
 #include "hal_sim.h"
 
@@ -210,4 +212,4 @@ hal_reset_cause_t hal_reset_cause(void) { return sim.reset_cause; }
 uint32_t sim_watchdog_kicks(void) { return sim.wdt_kicks; }
 uint16_t sim_watchdog_timeout_ms(void) { return sim.wdt_timeout_ms; }
 
-#endif /* native only */
+#endif /* native build, or any unit-test build */

@@ -11,8 +11,14 @@
 extern "C" {
 #endif
 
+#if defined(__AVR__)
+/* Unit tests under simavr share the ATmega2560's 8 KB of RAM with the sim backend. */
+#define SIM_EEPROM_SIZE 1024u
+#define SIM_UART_BUF 256u
+#else
 #define SIM_EEPROM_SIZE 4096u
 #define SIM_UART_BUF 4096u
+#endif
 
 void sim_reset(void);                    /* power-on state: time 0, buffers empty, EEPROM erased (0xFF) */
 void sim_time_set_us(uint32_t t_us);

@@ -8,7 +8,7 @@
  *   servos      TIM3 CH1/CH2 (PA6, PA7), 50 Hz, 1 us resolution
  *   EEPROM      emulated in RAM here (flash-page emulation is a later step)
  */
-#if defined(__arm__)
+#if defined(__arm__) && !defined(PIO_UNIT_TESTING)
 
 #include "../hal.h"
 

@@ -1,0 +1,91 @@
+/* The simulated HAL is what every other native test and the SIL stand on. */
+#include <unity.h>
+
+#include "hal.h"
+#include "sim/hal_sim.h"
+
+static uint8_t s_last_idx, s_last_ab, s_calls;
+static uint32_t s_last_t;
+
+static void on_edge(uint8_t idx, uint8_t ab, uint32_t t_us)
+{
+    s_last_idx = idx;
+    s_last_ab = ab;
+    s_last_t = t_us;
+    s_calls++;
+}
+
+void setUp(void)
+{
+    sim_reset();
+    s_calls = 0;
+}
+
+void tearDown(void) {}
+
+static void test_sim_time_advances_and_wraps_at_32_bits(void)
+{
+    sim_time_set_us(0xFFFFFF00u);
+    sim_time_advance_us(0x200u);
+    TEST_ASSERT_EQUAL_UINT32(0x100u, hal_time_us());
+    TEST_ASSERT_EQUAL_UINT32(0u, hal_time_ms());
+}
+
+static void test_sim_uart_round_trip_keeps_byte_order(void)
+{
+    const uint8_t out[3] = {0xFD, 0x01, 0x02};
+    uint8_t got[4] = {0};
+    TEST_ASSERT_EQUAL_UINT16(3u, hal_uart_write(HAL_UART_LINK, out, 3u));
+    TEST_ASSERT_EQUAL_UINT16(3u, sim_uart_take_tx(HAL_UART_LINK, got, 4u));
+    TEST_ASSERT_EQUAL_UINT8_ARRAY(out, got, 3);
+    TEST_ASSERT_EQUAL_UINT16(3u, sim_uart_put_rx(HAL_UART_LINK, out, 3u));
+    TEST_ASSERT_EQUAL_UINT16(3u, hal_uart_read(HAL_UART_LINK, got, 4u));
+    TEST_ASSERT_EQUAL_UINT8_ARRAY(out, got, 3);
+    TEST_ASSERT_EQUAL_UINT16(0u, hal_uart_read(HAL_UART_LINK, got, 4u));
+}
+
+static void test_sim_eeprom_starts_erased_and_keeps_writes(void)
+{
+    uint8_t b[2];
+    hal_eeprom_read(10u, b, 2u);
+    TEST_ASSERT_EQUAL_HEX8(0xFF, b[0]);
+    const uint8_t w[2] = {0x12, 0x34};
+    hal_eeprom_write(10u, w, 2u);
+    hal_eeprom_read(10u, b, 2u);
+    TEST_ASSERT_EQUAL_UINT8_ARRAY(w, b, 2);
+    TEST_ASSERT_EQUAL_HEX8(0x34, sim_eeprom_bytes()[11]);
+}
+
+static void test_sim_encoder_edge_reaches_hook_with_time(void)
+{
+    hal_encoder_attach(2u, on_edge);
+    sim_time_set_us(1234u);
+    sim_encoder_edge(1u, 2u);
+    TEST_ASSERT_EQUAL_UINT8(1u, s_calls);
+    TEST_ASSERT_EQUAL_UINT8(1u, s_last_idx);
+    TEST_ASSERT_EQUAL_UINT8(2u, s_last_ab);
+    TEST_ASSERT_EQUAL_UINT32(1234u, s_last_t);
+    sim_encoder_edge(3u, 1u); /* not attached: ignored */
+    TEST_ASSERT_EQUAL_UINT8(1u, s_calls);
+}
+
+static void test_sim_irq_save_restore_nests(void)
+{
+    hal_irq_state_t outer = hal_irq_save();
+    hal_irq_state_t inner = hal_irq_save();
+    hal_irq_restore(inner);
+    TEST_ASSERT_TRUE(sim_irq_masked());
+    hal_irq_restore(outer);
+    TEST_ASSERT_FALSE(sim_irq_masked());
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_sim_time_advances_and_wraps_at_32_bits);
+    RUN_TEST(test_sim_uart_round_trip_keeps_byte_order);
+    RUN_TEST(test_sim_eeprom_starts_erased_and_keeps_writes);
+    RUN_TEST(test_sim_encoder_edge_reaches_hook_with_time);
+    RUN_TEST(test_sim_irq_save_restore_nests);
+    return UNITY_END();
+}

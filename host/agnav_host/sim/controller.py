@@ -1,0 +1,141 @@
+"""Idealised firmware stand-ins: simple controllers that let a scenario run end to end.
+
+They take an :class:`~agnav_host.types.Observation` and return a :class:`~agnav_host.types.DriveCommand`,
+the same shape the host planners use, and are chosen by name through :data:`STANDINS`. The real
+planners (FLB, HIM, VFH, ...) live in ``agnav_host.planning`` and will be selectable the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
+
+__all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m"]
+
+
+class Controller(Protocol):
+    def reset(self) -> None: ...
+
+    def step(self, obs: Observation) -> DriveCommand: ...
+
+
+def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:
+    """How far a disc of radius ``half_width_m`` can travel straight along each direction.
+
+    ``points_xy`` (k, 2) obstacle points in the robot frame (disc centred at the origin), m;
+    ``directions_rad`` (d,). Returns (d,) distances in m, capped at ``horizon_m``.
+    """
+    out = np.full(len(directions_rad), horizon_m)
+    if len(points_xy) == 0:
+        return out
+    ux, uy = np.cos(directions_rad)[:, None], np.sin(directions_rad)[:, None]
+    px, py = points_xy[None, :, 0], points_xy[None, :, 1]
+    along = px * ux + py * uy
+    lat = np.abs(px * uy - py * ux)
+    block = (lat < half_width_m) & (along > -half_width_m)
+    dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
+    dist = np.where(block, np.maximum(dist, 0.0), np.inf)
+    return np.minimum(out, dist.min(axis=1))
+
+
+@dataclass(frozen=True)
+class GoalSeekParams:
+    """Gains and limits of the goal-seeking stand-in (SI units)."""
+
+    kinematics: str = "diff_drive"  # or "ackermann"
+    radius_m: float = 0.225
+    margin_m: float = 0.08
+    max_speed_m_s: float = 0.5
+    min_speed_m_s: float = 0.0  # Ackermann: the slowest speed the drive can hold
+    max_yaw_rate_rad_s: float = 1.2
+    wheelbase_m: float = 0.174
+    max_steer_rad: float = math.radians(24.6)
+    lookahead_m: float = 2.0
+    yaw_gain: float = 2.0
+    n_directions: int = 73
+    hysteresis: float = 0.15  # penalty per rad of change from the previous choice
+    slow_radius_m: float = 0.6  # slow down when the goal is nearer than this
+
+
+class GoalSeek:
+    """Reactive goal seeking over the laser scan (a gap-following rule with hysteresis).
+
+    Each step, for directions across +-135 deg (+-90 deg for Ackermann) it computes how far the robot's
+    disc could drive straight (:func:`free_distances_m`); among directions free for
+    min(goal distance, lookahead) it takes the one closest to the goal bearing, else the most open one.
+    A differential drive turns on the spot when the chosen direction is more than 60 deg off; an
+    Ackermann robot steers by pure pursuit towards a point on that direction.
+    """
+
+    def __init__(self, params: GoalSeekParams | None = None) -> None:
+        self.params = params or GoalSeekParams()
+        self._prev: float = 0.0
+
+    def reset(self) -> None:
+        self._prev = 0.0
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p = self.params
+        pose = obs.pose
+        gx, gy = obs.goal.x_m - pose.x_m, obs.goal.y_m - pose.y_m
+        d_goal = math.hypot(gx, gy)
+        g_rel = norm_angle_rad(math.atan2(gy, gx) - pose.yaw_rad)
+        pts = np.zeros((0, 2))
+        if obs.scan is not None and obs.scan.pose is not None:
+            local = obs.scan.xy()
+            sp = obs.scan.pose
+            c, s = math.cos(sp.yaw_rad), math.sin(sp.yaw_rad)
+            wx = sp.x_m + c * local[:, 0] - s * local[:, 1]
+            wy = sp.y_m + s * local[:, 0] + c * local[:, 1]
+            c0, s0 = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+            dx, dy = wx - pose.x_m, wy - pose.y_m
+            pts = np.column_stack((c0 * dx + s0 * dy, -s0 * dx + c0 * dy))
+        span = math.radians(135.0) if p.kinematics == "diff_drive" else math.radians(90.0)
+        dirs = np.linspace(-span, span, p.n_directions)
+        dirs = np.unique(np.append(dirs, np.clip(g_rel, -span, span)))
+        w = p.radius_m + p.margin_m
+        free = free_distances_m(pts, dirs, w, p.lookahead_m)
+        need = min(d_goal, p.lookahead_m)
+        ok = free >= need - 1e-6
+        cost = np.abs(dirs - g_rel) + p.hysteresis * np.abs(dirs - self._prev)
+        if ok.any():
+            i = int(np.argmin(np.where(ok, cost, np.inf)))
+        else:
+            i = int(np.argmax(free - 0.3 * np.abs(dirs - g_rel)))
+        theta = float(dirs[i])
+        self._prev = theta
+        ahead = float(free_distances_m(pts, np.array([0.0]), w, p.lookahead_m)[0])
+        speed_cap = p.max_speed_m_s * min(1.0, free[i] / p.lookahead_m + 0.25, max(d_goal, 0.05) / p.slow_radius_m + 0.2)
+        if p.kinematics == "diff_drive":
+            yaw_rate = max(-p.max_yaw_rate_rad_s, min(p.max_yaw_rate_rad_s, p.yaw_gain * theta))
+            if abs(theta) > math.radians(60.0) or ahead < 0.05:
+                return DriveCommand(0.0, yaw_rate)
+            v = speed_cap * math.cos(theta) ** 2
+            return DriveCommand(v, yaw_rate)
+        # Ackermann: pure pursuit to a point at distance ld along theta; no reverse
+        ld = max(0.5, min(need, 1.5))
+        steer = math.atan2(2.0 * p.wheelbase_m * math.sin(theta), ld)
+        steer = max(-p.max_steer_rad, min(p.max_steer_rad, steer))
+        if ahead < 0.05 and free[i] < 0.05:
+            return DriveCommand(0.0, 0.0, steer)
+        v = max(p.min_speed_m_s, speed_cap * (0.5 + 0.5 * math.cos(theta)))
+        return DriveCommand(v, 0.0, steer)
+
+
+STANDINS: dict[str, Callable[[GoalSeekParams], Controller]] = {
+    "goal_seek": GoalSeek,
+}
+
+
+def make_standin(name: str, params: GoalSeekParams) -> Controller:
+    """Build a stand-in controller by name; ValueError lists the known names on a miss."""
+    try:
+        factory = STANDINS[name]
+    except KeyError:
+        raise ValueError(f"unknown planner {name!r}; known: {', '.join(sorted(STANDINS))}") from None
+    return factory(params)

@@ -1,0 +1,171 @@
+"""Run metrics written to summary.json.
+
+Path length and bending energy follow ref 000 (its eqs. 4-11), which compares planners by the total
+path length and the bending energy of the driven path. Ref 000 gets the curvature of each triple of
+consecutive path points from the circle through them and sums the squared curvatures (its eq. 11,
+reconstructed: ``BE = sum_i kappa_i^2``). A plain sum depends on how densely the path was sampled, so
+AgNav uses the integral form ``BE = integral kappa(s)^2 ds``: the path is first resampled at equal arc
+length ``ds``, each interior point gets the circumcircle (Menger) curvature
+``kappa = 4 * area(P1, P2, P3) / (|P1P2| |P2P3| |P1P3|)``, and ``BE = sum kappa_i^2 * ds``. A circle
+of radius R then gives length / R^2 and a straight line 0, whatever the sample rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..types import FloatArray, norm_angle_rad
+
+__all__ = [
+    "SUMMARY_KEYS",
+    "path_length_m",
+    "bending_energy",
+    "resample_path",
+    "count_stops",
+    "count_heading_oscillations",
+    "RunMetrics",
+]
+
+SUMMARY_KEYS = (
+    "success",
+    "time_s",
+    "path_length_m",
+    "bending_energy",
+    "min_clearance_m",
+    "stops",
+    "heading_oscillations",
+    "final_position_error_m",
+    "final_heading_error_deg",
+    "arrival_time_error_s",
+)
+
+
+def path_length_m(xy: FloatArray) -> float:
+    """Sum of distances between consecutive points (n, 2), m (ref 000 eq. 4)."""
+    xy = np.asarray(xy, dtype=float)
+    if len(xy) < 2:
+        return 0.0
+    d = np.diff(xy, axis=0)
+    return float(np.hypot(d[:, 0], d[:, 1]).sum())
+
+
+def resample_path(xy: FloatArray, ds_m: float) -> FloatArray:
+    """Points (k, 2) every ``ds_m`` of arc length along a path (n, 2); stationary samples drop out."""
+    xy = np.asarray(xy, dtype=float)
+    d = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
+    keep = np.concatenate(([True], d > 1e-12)) if len(xy) else np.zeros(0, dtype=bool)
+    xy = xy[keep]
+    if len(xy) < 2:
+        return xy
+    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    s = np.arange(0.0, cum[-1] + 1e-12, ds_m)
+    return np.column_stack((np.interp(s, cum, xy[:, 0]), np.interp(s, cum, xy[:, 1])))
+
+
+def menger_curvature(xy: FloatArray) -> FloatArray:
+    """Curvature (n-2,) in 1/m of the circle through each triple of consecutive points (n, 2)."""
+    p1, p2, p3 = xy[:-2], xy[1:-1], xy[2:]
+    a = np.hypot(*(p2 - p1).T)
+    b = np.hypot(*(p3 - p2).T)
+    c = np.hypot(*(p3 - p1).T)
+    cross = (p2[:, 0] - p1[:, 0]) * (p3[:, 1] - p1[:, 1]) - (p2[:, 1] - p1[:, 1]) * (p3[:, 0] - p1[:, 0])
+    den = a * b * c
+    return np.where(den > 1e-15, 2.0 * np.abs(cross) / np.where(den > 1e-15, den, 1.0), 0.0)
+
+
+def bending_energy(xy: FloatArray, ds_m: float = 0.05) -> float:
+    """Integral of squared curvature along a path (n, 2), 1/m. See the module docstring."""
+    p = resample_path(xy, ds_m)
+    if len(p) < 3:
+        return 0.0
+    k = menger_curvature(p)
+    return float(np.sum(k * k) * ds_m)
+
+
+def count_stops(speed_m_s: FloatArray, moving_m_s: float = 0.05, stopped_m_s: float = 0.01) -> int:
+    """Times the robot came to rest after moving (hysteresis between the two thresholds).
+
+    A final stop at the end of the record is not counted (arriving is not a stop)."""
+    stops = 0
+    moving = False
+    pending = False
+    for v in np.abs(np.asarray(speed_m_s, dtype=float)):
+        if moving and v < stopped_m_s:
+            moving, pending = False, True
+        elif not moving and v > moving_m_s:
+            if pending:
+                stops += 1
+                pending = False
+            moving = True
+    return stops
+
+
+def count_heading_oscillations(yaw_rate_rad_s: FloatArray, threshold_rad_s: float = 0.1) -> int:
+    """Sign reversals of the yaw rate among samples with |rate| above threshold (left-right sway)."""
+    w = np.asarray(yaw_rate_rad_s, dtype=float)
+    s = np.sign(w[np.abs(w) > threshold_rad_s])
+    return int(np.count_nonzero(s[1:] != s[:-1])) if len(s) > 1 else 0
+
+
+@dataclass(frozen=True)
+class RunMetrics:
+    """The summary.json metrics. ``None`` means the metric does not apply to the run."""
+
+    success: bool
+    time_s: float
+    path_length_m: float
+    bending_energy: float
+    min_clearance_m: float | None
+    stops: int
+    heading_oscillations: int
+    final_position_error_m: float
+    final_heading_error_deg: float | None
+    arrival_time_error_s: float | None
+
+    @staticmethod
+    def compute(
+        t_s: FloatArray,
+        xy: FloatArray,
+        yaw_rad: FloatArray,
+        speed_m_s: FloatArray,
+        yaw_rate_rad_s: FloatArray,
+        clearance_m: FloatArray,
+        goal_xy: tuple[float, float],
+        goal_yaw_rad: float | None,
+        goal_arrival_s: float | None,
+        success: bool,
+        arrival_s: float | None,
+    ) -> "RunMetrics":
+        """Metrics of a recorded run (arrays indexed by sample). ``arrival_s`` is when the final goal was
+        reached (None if never); ``time_s`` is that time, or the run's end when not reached."""
+        xy = np.asarray(xy, dtype=float)
+        end = xy[-1]
+        fpe = math.hypot(end[0] - goal_xy[0], end[1] - goal_xy[1])
+        fhe = None if goal_yaw_rad is None else math.degrees(abs(norm_angle_rad(float(yaw_rad[-1]) - goal_yaw_rad)))
+        ate = None if goal_arrival_s is None or arrival_s is None else arrival_s - goal_arrival_s
+        clear = np.asarray(clearance_m, dtype=float)
+        clear = clear[np.isfinite(clear)]
+        return RunMetrics(
+            success=bool(success),
+            time_s=float(arrival_s if arrival_s is not None else t_s[-1]),
+            path_length_m=path_length_m(xy),
+            bending_energy=bending_energy(xy),
+            min_clearance_m=float(clear.min()) if len(clear) else None,
+            stops=count_stops(speed_m_s),
+            heading_oscillations=count_heading_oscillations(yaw_rate_rad_s),
+            final_position_error_m=fpe,
+            final_heading_error_deg=fhe,
+            arrival_time_error_s=ate,
+        )
+
+    def to_dict(self, ndigits: int = 6) -> dict[str, Any]:
+        """Keys in SUMMARY_KEYS order; floats rounded so files are stable across platforms."""
+        out: dict[str, Any] = {}
+        for k in SUMMARY_KEYS:
+            v = getattr(self, k)
+            out[k] = round(v, ndigits) if isinstance(v, float) else v
+        return out

@@ -1,0 +1,173 @@
+"""Run a scenario with a controller in closed loop and write its outputs.
+
+The simulator owns time: physics advances in fixed ``dt_s`` steps and the controller runs every
+``1 / control_hz`` seconds on a fresh laser scan. All noise comes from generators spawned from one
+seed, so the same seed gives byte-identical outputs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..types import DriveCommand, Goal, Observation
+from .controller import GoalSeekParams, make_standin
+from .metrics import RunMetrics
+from .robots import Ackermann, AckermannParams
+from .scenario import Scenario
+
+__all__ = ["RunResult", "run_scenario", "write_outputs", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
+
+TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
+HOLE_FALL_DEPTH_M = 0.1  # the robot's centre over ground this far below nominal counts as fallen in
+
+
+@dataclass
+class RunResult:
+    """Outcome of a run: metrics, the sampled trajectory (n, 8) in TRAJECTORY_COLUMNS order, and why it ended."""
+
+    scenario: str
+    planner: str
+    seed: int
+    metrics: RunMetrics
+    trajectory: np.ndarray
+    end_reason: str  # "arrived", "collision", "fell_in_hole", "timeout"
+
+
+def _standin_params(sc: Scenario) -> GoalSeekParams:
+    p = sc.robot_params
+    if isinstance(p, AckermannParams):
+        vmin = p.true_speed.pos_value[0] if p.true_speed is not None and p.true_speed.pos_value else 0.0
+        return GoalSeekParams(kinematics="ackermann", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s, min_speed_m_s=vmin,
+                              wheelbase_m=p.wheelbase_m, max_steer_rad=p.max_steer_rad, margin_m=0.1, lookahead_m=2.5)
+    return GoalSeekParams(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s)
+
+
+def run_scenario(
+    sc: Scenario,
+    planner: str = "goal_seek",
+    seed: int = 0,
+    duration_s: float | None = None,
+    goal: Goal | None = None,
+    progress: Callable[[float, float], None] | None = None,
+) -> RunResult:
+    """Simulate ``sc`` with the named stand-in controller.
+
+    ``goal`` replaces the scenario's goals; ``progress(t_s, duration_s)`` is called about every
+    simulated second. The run ends on arrival at the last goal, a collision, falling into a hole,
+    or at ``duration_s`` (the scenario's when None).
+    """
+    if goal is not None:
+        sc = replace(sc, goals=[goal])
+    duration = sc.duration_s if duration_s is None else duration_s
+    if not duration > 0:
+        raise ValueError(f"duration_s must be > 0, got {duration}")
+    ctrl = make_standin(planner, _standin_params(sc))
+    ctrl.reset()
+    ss = np.random.SeedSequence(seed)
+    rng_robot, rng_laser, rng_sonar = (np.random.default_rng(s) for s in ss.spawn(3))
+    robot = sc.make_robot()
+    world = sc.world
+    dt = sc.dt_s
+    n_steps = int(round(duration / dt))
+    ctrl_every = max(1, int(round(1.0 / (sc.control_hz * dt))))
+    prog_every = max(1, int(round(1.0 / dt)))
+    gi = 0
+    cmd = DriveCommand()
+    rows = np.zeros((n_steps + 1, len(TRAJECTORY_COLUMNS)))
+    reason = "timeout"
+    arrival_s: float | None = None
+
+    def clearance(t: float) -> float:
+        cx, cy = robot.footprint_centre()
+        return float(world.clearance_m(cx, cy, t)[0]) - robot.radius_m
+
+    rows[0] = (0.0, robot.pose.x_m, robot.pose.y_m, robot.pose.yaw_rad, 0.0, 0.0, clearance(0.0), 0)
+    k = 0
+    for k in range(1, n_steps + 1):
+        t_prev = (k - 1) * dt
+        if (k - 1) % ctrl_every == 0:
+            scan = sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None
+            obs = Observation(t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s, sc.goals[gi], scan)
+            cmd = ctrl.step(obs)
+        robot.step(cmd, dt, rng_robot)
+        t = k * dt
+        cl = clearance(t)
+        p = robot.pose
+        rows[k] = (t, p.x_m, p.y_m, p.yaw_rad, robot.speed_m_s, robot.yaw_rate_rad_s, cl, gi)
+        if progress is not None and k % prog_every == 0:
+            progress(t, duration)
+        if cl < 0.0:
+            reason = "collision"
+            break
+        if world.has_ground_features:
+            cx, cy = robot.footprint_centre()
+            if float(world.ground_height_m(np.array(cx), np.array(cy))) < -HOLE_FALL_DEPTH_M:
+                reason = "fell_in_hole"
+                break
+        g = sc.goals[gi]
+        if math.hypot(g.x_m - p.x_m, g.y_m - p.y_m) <= g.tolerance_m:
+            if gi + 1 < len(sc.goals):
+                gi += 1
+            else:
+                reason = "arrived"
+                arrival_s = t
+                break
+    rows = rows[: k + 1]
+    last = sc.goals[-1]
+    metrics = RunMetrics.compute(
+        rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
+        last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s,
+    )
+    if isinstance(robot, Ackermann):
+        pass
+    return RunResult(sc.name, planner, seed, metrics, rows, reason)
+
+
+def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:
+    """Write summary.json (exactly the metric keys), run_info.json, trajectory.csv and, when
+    matplotlib is importable and ``plot``, trajectory.png. Returns the written paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    summary = out / "summary.json"
+    summary.write_text(json.dumps(result.metrics.to_dict(), indent=2) + "\n", encoding="utf-8")
+    written.append(summary)
+    info = out / "run_info.json"
+    info.write_text(json.dumps({"scenario": result.scenario, "planner": result.planner, "seed": result.seed,
+                                "end_reason": result.end_reason, "samples": int(len(result.trajectory))}, indent=2) + "\n",
+                    encoding="utf-8")
+    written.append(info)
+    traj = out / "trajectory.csv"
+    lines = [",".join(TRAJECTORY_COLUMNS)]
+    for r in result.trajectory:
+        lines.append(f"{r[0]:.3f},{r[1]:.6f},{r[2]:.6f},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f},{r[6]:.6f},{int(r[7])}")
+    traj.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    written.append(traj)
+    if plot:
+        png = _try_plot(result, out / "trajectory.png")
+        if png is not None:
+            written.append(png)
+    return written
+
+
+def _try_plot(result: RunResult, path: Path) -> Path | None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    fig, ax = plt.subplots(figsize=(6, 6))
+    ax.plot(result.trajectory[:, 1], result.trajectory[:, 2], "b-", lw=1)
+    ax.set_aspect("equal")
+    ax.set_title(f"{result.scenario} ({result.end_reason})")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -1,0 +1,536 @@
+"""Scenario files (TOML): parsing, validation with line numbers, and the built-in scenarios.
+
+The schema is documented in docs/scenario_schema.md. Every problem raises :class:`ScenarioError`
+naming the field (``circles[2].radius_m``) and the line it is on. ``tomllib`` reports line numbers
+only for syntax errors, so for value errors the key's line is found by scanning the text
+(:func:`locate_line`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..calib import CalibError, default_speed_table, default_steering_table
+from ..types import Goal, Pose2D
+from .robots import Ackermann, AckermannParams, DiffDrive, DiffDriveParams, Robot
+from .sensors import Laser2D, LaserSpec, SonarRing, SonarSpec, TiltedLaser, laser_preset
+from .world import Hole, Mover, Rut, Step, World, box_segments, plants_along, polyline_segments, sine_curve
+
+__all__ = [
+    "ScenarioError",
+    "Scenario",
+    "load_scenario",
+    "parse_scenario",
+    "builtin_names",
+    "builtin_text",
+    "builtin_descriptions",
+    "DEFAULT_SCENARIO",
+    "locate_line",
+]
+
+DEFAULT_SCENARIO = "corridor_obstacles"
+
+Path_ = tuple[str | int, ...]
+
+
+class ScenarioError(ValueError):
+    """A scenario file problem: ``field`` (dotted path), ``line`` (1-based, or None) and a message."""
+
+    def __init__(self, field: str, line: int | None, message: str, source: str = "<scenario>") -> None:
+        self.field = field
+        self.line = line
+        self.message = message
+        self.source = source
+        where = f"{source}:{line}" if line is not None else source
+        super().__init__(f"{where}: {field}: {message}")
+
+
+def _fmt_path(path: Path_) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else p)
+    return out or "<root>"
+
+
+_BARE_KEY = re.compile(r'^\s*([A-Za-z0-9_\-]+(?:\s*\.\s*[A-Za-z0-9_\-]+)*)\s*=')
+_INLINE_KEY = re.compile(r'([A-Za-z0-9_\-]+)\s*=')
+
+
+def _strip_strings(line: str) -> str:
+    """The line with string contents blanked and any comment removed (for bracket counting)."""
+    out = []
+    quote = ""
+    for ch in line:
+        if quote:
+            out.append(" ")
+            if ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+            out.append(" ")
+        elif ch == "#":
+            break
+        else:
+            out.append(ch)
+    return "".join(out)
+
+
+def _key_index(text: str) -> list[tuple[Path_, int]]:
+    """(key path, line) for every table header, key and inline-table key in a TOML text."""
+    entries: list[tuple[Path_, int]] = []
+    header: Path_ = ()
+    counts: dict[tuple[str, ...], int] = {}
+    depth = 0
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        s = _strip_strings(raw).strip()
+        if depth == 0 and s.startswith("[["):
+            name = tuple(p.strip() for p in s[2 : s.find("]]")].split("."))
+            counts[name] = counts.get(name, -1) + 1
+            header = (*name, counts[name])
+            entries.append((header, lineno))
+            continue
+        if depth == 0 and s.startswith("["):
+            header = tuple(p.strip() for p in s[1 : s.find("]")].split("."))
+            entries.append((header, lineno))
+            continue
+        if depth == 0:
+            m = _BARE_KEY.match(s)
+            if m:
+                key = tuple(k.strip() for k in m.group(1).split("."))
+                entries.append(((*header, *key), lineno))
+                rest = s[m.end() :]
+                if "{" in rest:  # inline table: index its keys on this line too
+                    for sub in _INLINE_KEY.findall(rest):
+                        entries.append(((*header, *key, sub), lineno))
+        depth += s.count("[") + s.count("{") - s.count("]") - s.count("}")
+        depth = max(depth, 0)
+    return entries
+
+
+def locate_line(text: str, path: Path_) -> int | None:
+    """Line (1-based) of the deepest key on ``path`` found in ``text``; None if none matches."""
+    index = _key_index(text)
+    for n in range(len(path), 0, -1):
+        want = tuple(path[:n])
+        for key, line in index:
+            if key == want:
+                return line
+    return None
+
+
+class _Reader:
+    """Typed access to the parsed TOML with errors that carry the field and line."""
+
+    def __init__(self, text: str, source: str) -> None:
+        self.text = text
+        self.source = source
+
+    def error(self, path: Path_, message: str) -> ScenarioError:
+        return ScenarioError(_fmt_path(path), locate_line(self.text, path), message, self.source)
+
+    def keys(self, d: dict[str, Any], path: Path_, allowed: set[str]) -> None:
+        for k in d:
+            if k not in allowed:
+                raise self.error((*path, k), f"unknown key; allowed: {', '.join(sorted(allowed))}")
+
+    def table(self, d: dict[str, Any], key: str, path: Path_, required: bool = False) -> dict[str, Any]:
+        if key not in d:
+            if required:
+                raise self.error(path, f"missing required table [{_fmt_path((*path, key))}]")
+            return {}
+        v = d[key]
+        if not isinstance(v, dict):
+            raise self.error((*path, key), "must be a table")
+        return v
+
+    def tables(self, d: dict[str, Any], key: str) -> list[dict[str, Any]]:
+        v = d.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            raise self.error((key,), f"must be an array of tables ([[{key}]])")
+        return v
+
+    def num(self, d: dict[str, Any], key: str, path: Path_, default: float | None = None, *,
+            lo: float | None = None, hi: float | None = None, lo_open: bool = False, required: bool = False) -> float:
+        if key not in d:
+            if required or default is None:
+                raise self.error(path, f"missing required field '{key}'")
+            return default
+        v = d[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self.error((*path, key), f"must be a finite number, got {v!r}")
+        v = float(v)
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            raise self.error((*path, key), f"must be {'>' if lo_open else '>='} {lo:g}, got {v:g}")
+        if hi is not None and v > hi:
+            raise self.error((*path, key), f"must be <= {hi:g}, got {v:g}")
+        return v
+
+    def opt_num(self, d: dict[str, Any], key: str, path: Path_, **kw: Any) -> float | None:
+        return self.num(d, key, path, **kw) if key in d else None
+
+    def integer(self, d: dict[str, Any], key: str, path: Path_, default: int, lo: int = 0) -> int:
+        v = d.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.error((*path, key), f"must be an integer, got {v!r}")
+        if v < lo:
+            raise self.error((*path, key), f"must be >= {lo}, got {v}")
+        return v
+
+    def string(self, d: dict[str, Any], key: str, path: Path_, default: str | None = None, choices: tuple[str, ...] | None = None) -> str:
+        if key not in d:
+            if default is None:
+                raise self.error(path, f"missing required field '{key}'")
+            return default
+        v = d[key]
+        if not isinstance(v, str):
+            raise self.error((*path, key), f"must be a string, got {v!r}")
+        if choices is not None and v not in choices:
+            raise self.error((*path, key), f"must be one of {', '.join(choices)}; got {v!r}")
+        return v
+
+    def boolean(self, d: dict[str, Any], key: str, path: Path_, default: bool) -> bool:
+        v = d.get(key, default)
+        if not isinstance(v, bool):
+            raise self.error((*path, key), f"must be true or false, got {v!r}")
+        return v
+
+    def points(self, d: dict[str, Any], key: str, path: Path_, min_count: int = 2) -> np.ndarray:
+        if key not in d:
+            raise self.error(path, f"missing required field '{key}'")
+        v = d[key]
+        if not isinstance(v, list) or len(v) < min_count:
+            raise self.error((*path, key), f"must be a list of at least {min_count} [x_m, y_m] points")
+        for i, p in enumerate(v):
+            if (not isinstance(p, list) or len(p) != 2
+                    or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)):
+                raise self.error((*path, key, i), f"must be a [x_m, y_m] pair of numbers, got {p!r}")
+        return np.asarray(v, dtype=float)
+
+    def pose(self, d: dict[str, Any], key: str, path: Path_) -> Pose2D:
+        t = self.table(d, key, path, required=True)
+        p = (*path, key)
+        self.keys(t, p, {"x_m", "y_m", "yaw_deg"})
+        return Pose2D(self.num(t, "x_m", p, required=True), self.num(t, "y_m", p, required=True),
+                      math.radians(self.num(t, "yaw_deg", p, 0.0)))
+
+
+@dataclass
+class Scenario:
+    """Everything needed to run one simulation (geometry, robot, sensors, goals)."""
+
+    name: str
+    description: str
+    world: World
+    robot_kind: str
+    robot_params: DiffDriveParams | AckermannParams
+    start: Pose2D
+    goals: list[Goal]
+    duration_s: float = 120.0
+    dt_s: float = 0.02
+    control_hz: float = 15.0
+    max_speed_m_s: float = 0.5
+    laser: Laser2D | None = None
+    tilted_laser: TiltedLaser | None = None
+    sonar: SonarRing | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def make_robot(self) -> Robot:
+        r: Robot
+        if self.robot_kind == "ackermann":
+            assert isinstance(self.robot_params, AckermannParams)
+            r = Ackermann(self.robot_params)
+        else:
+            assert isinstance(self.robot_params, DiffDriveParams)
+            r = DiffDrive(self.robot_params)
+        r.reset(self.start)
+        return r
+
+
+_TOP_KEYS = {"scenario", "robot", "laser", "tilted_laser", "sonar", "goals", "walls", "boxes", "circles",
+             "polygons", "movers", "rows", "weeds", "holes", "steps", "ruts", "meta"}
+
+
+def _laser_spec(rd: _Reader, t: dict[str, Any], path: Path_, default_model: str) -> LaserSpec:
+    model = rd.string(t, "model", path, default_model)
+    try:
+        spec = laser_preset(model)
+    except ValueError as e:
+        raise rd.error((*path, "model"), str(e)) from None
+    over: dict[str, Any] = {}
+    for k in ("range_std_m", "dropout_prob", "mixed_pixel_prob", "max_range_m"):
+        if k in t:
+            over[k] = rd.num(t, k, path, lo=0.0, hi=1.0 if k.endswith("prob") else None)
+    if "no_return" in t:
+        nr = rd.string(t, "no_return", path, choices=("nan", "inf", "zero"))
+        over["no_return"] = {"nan": math.nan, "inf": math.inf, "zero": 0.0}[nr]
+    return LaserSpec(**{**{f.name: getattr(spec, f.name) for f in fields(spec)}, **over})
+
+
+def _robot(rd: _Reader, data: dict[str, Any]) -> tuple[str, DiffDriveParams | AckermannParams, Pose2D, float]:
+    path: Path_ = ("robot",)
+    t = rd.table(data, "robot", (), required=True)
+    kind = rd.string(t, "model", path, choices=("diff_drive", "ackermann"))
+    cls = DiffDriveParams if kind == "diff_drive" else AckermannParams
+    numeric = {f.name for f in fields(cls) if f.type in ("float", float)}
+    angle_deg = {"max_steer_deg": "max_steer_rad", "max_steer_rate_deg_s": "max_steer_rate_rad_s"} if kind == "ackermann" else {}
+    rd.keys(t, path, {"model", "start", "max_speed_m_s", "calib"} | (numeric - set(angle_deg.values())) | set(angle_deg))
+    start = rd.pose(t, "start", path)
+    kw: dict[str, Any] = {}
+    for k in t:
+        if k in numeric:
+            kw[k] = rd.num(t, k, path, lo=0.0)
+        elif k in angle_deg:
+            kw[angle_deg[k]] = math.radians(rd.num(t, k, path, lo=0.0, lo_open=True, hi=89.0))
+    calib = rd.table(t, "calib", path)
+    if calib:
+        cp = (*path, "calib")
+        if kind != "ackermann":
+            raise rd.error(cp, "calibration tables apply to the ackermann model only")
+        rd.keys(calib, cp, {"tables", "steer_scale", "steer_offset_pwm", "speed_scale", "speed_offset_pwm"})
+        rd.string(calib, "tables", cp, "default", choices=("default",))
+        try:
+            steer, speed = default_steering_table(), default_speed_table()
+            kw["ctrl_steer"], kw["ctrl_speed"] = steer, speed
+            kw["true_steer"] = steer.miscalibrated(rd.num(calib, "steer_scale", cp, 1.0, lo=0.0, lo_open=True),
+                                                   rd.num(calib, "steer_offset_pwm", cp, 0.0))
+            kw["true_speed"] = speed.miscalibrated(rd.num(calib, "speed_scale", cp, 1.0, lo=0.0, lo_open=True),
+                                                   rd.num(calib, "speed_offset_pwm", cp, 0.0))
+        except CalibError as e:
+            raise rd.error(cp, str(e)) from None
+    try:
+        params = cls(**kw)
+    except ValueError as e:
+        raise rd.error(path, str(e)) from None
+    vmax_default = 0.5 if kind == "diff_drive" else 1.0
+    vmax = rd.num(t, "max_speed_m_s", path, vmax_default, lo=0.0, lo_open=True)
+    return kind, params, start, vmax
+
+
+def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
+    """Parse and validate a scenario from TOML text; raises ScenarioError."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        m = re.search(r"line (\d+)", str(e))
+        raise ScenarioError("<toml>", int(m.group(1)) if m else None, f"TOML syntax error: {e}", source) from None
+    rd = _Reader(text, source)
+    rd.keys(data, (), _TOP_KEYS)
+    sc = rd.table(data, "scenario", (), required=True)
+    sp: Path_ = ("scenario",)
+    rd.keys(sc, sp, {"name", "description", "duration_s", "dt_s", "control_hz", "world_seed", "bounds"})
+    name = rd.string(sc, "name", sp)
+    description = rd.string(sc, "description", sp, "")
+    duration = rd.num(sc, "duration_s", sp, 120.0, lo=0.0, lo_open=True)
+    dt = rd.num(sc, "dt_s", sp, 0.02, lo=0.0, lo_open=True, hi=0.5)
+    control_hz = rd.num(sc, "control_hz", sp, 15.0, lo=0.0, lo_open=True)
+    wrng = np.random.default_rng(rd.integer(sc, "world_seed", sp, 0))
+
+    kind, params, start, vmax = _robot(rd, data)
+    world = World()
+
+    for i, w in enumerate(rd.tables(data, "walls")):
+        p: Path_ = ("walls", i)
+        rd.keys(w, p, {"points", "closed"})
+        world.add_segments(polyline_segments(rd.points(w, "points", p), rd.boolean(w, "closed", p, False)))
+    for i, b in enumerate(rd.tables(data, "boxes")):
+        p = ("boxes", i)
+        rd.keys(b, p, {"x_m", "y_m", "size_x_m", "size_y_m", "yaw_deg"})
+        world.add_segments(box_segments(rd.num(b, "x_m", p, required=True), rd.num(b, "y_m", p, required=True),
+                                        rd.num(b, "size_x_m", p, required=True, lo=0.0, lo_open=True),
+                                        rd.num(b, "size_y_m", p, required=True, lo=0.0, lo_open=True),
+                                        math.radians(rd.num(b, "yaw_deg", p, 0.0))))
+    for i, c in enumerate(rd.tables(data, "circles")):
+        p = ("circles", i)
+        rd.keys(c, p, {"x_m", "y_m", "radius_m"})
+        world.add_circles([rd.num(c, "x_m", p, required=True), rd.num(c, "y_m", p, required=True),
+                           rd.num(c, "radius_m", p, required=True, lo=0.0, lo_open=True)])
+    for i, g in enumerate(rd.tables(data, "polygons")):
+        p = ("polygons", i)
+        rd.keys(g, p, {"points"})
+        world.add_segments(polyline_segments(rd.points(g, "points", p, 3), closed=True))
+    for i, m in enumerate(rd.tables(data, "movers")):
+        p = ("movers", i)
+        rd.keys(m, p, {"radius_m", "speed_m_s", "waypoints", "loop", "start_s"})
+        wp = rd.points(m, "waypoints", p, 1)
+        world.movers.append(Mover(rd.num(m, "radius_m", p, 0.25, lo=0.0, lo_open=True), rd.num(m, "speed_m_s", p, 1.2, lo=0.0),
+                                  tuple((float(a), float(b)) for a, b in wp), rd.boolean(m, "loop", p, True),
+                                  rd.num(m, "start_s", p, 0.0, lo=0.0)))
+    for i, r in enumerate(rd.tables(data, "rows")):
+        p = ("rows", i)
+        rd.keys(r, p, {"points", "start", "length_m", "amplitude_m", "wavelength_m", "count", "spacing_m",
+                       "plant_spacing_m", "plant_radius_m", "cluster", "jitter_m", "gaps"})
+        count = rd.integer(r, "count", p, 1, lo=1)
+        spacing = rd.num(r, "spacing_m", p, 0.75, lo=0.0, lo_open=True)
+        if "points" in r and "start" in r:
+            raise rd.error((*p, "start"), "give either 'points' or 'start' + 'length_m', not both")
+        if "points" in r:
+            base = rd.points(r, "points", p)
+            d0 = base[1] - base[0]
+            normal = np.array([-d0[1], d0[0]]) / max(float(np.hypot(*d0)), 1e-12)
+        else:
+            st = rd.pose(r, "start", p)
+            base = sine_curve(st.x_m, st.y_m, st.yaw_rad, rd.num(r, "length_m", p, required=True, lo=0.0, lo_open=True),
+                              rd.num(r, "amplitude_m", p, 0.0, lo=0.0), rd.num(r, "wavelength_m", p, 10.0, lo=0.0, lo_open=True))
+            normal = np.array([-math.sin(st.yaw_rad), math.cos(st.yaw_rad)])
+        gaps = []
+        for j, gp in enumerate(r.get("gaps", [])):
+            if (not isinstance(gp, list) or len(gp) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in gp)
+                    or gp[0] > gp[1]):
+                raise rd.error((*p, "gaps", j), f"must be [start_m, end_m] along the row with start <= end, got {gp!r}")
+            gaps.append((float(gp[0]), float(gp[1])))
+        for k in range(count):
+            world.add_circles(plants_along(base + k * spacing * normal, rd.num(r, "plant_spacing_m", p, 0.15, lo=0.0, lo_open=True),
+                                           rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
+                                           rd.integer(r, "cluster", p, 3, lo=1), rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps))
+    for i, w in enumerate(rd.tables(data, "weeds")):
+        p = ("weeds", i)
+        rd.keys(w, p, {"region", "count", "radius_m"})
+        reg = w.get("region")
+        if not (isinstance(reg, list) and len(reg) == 4 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in reg)
+                and reg[0] < reg[2] and reg[1] < reg[3]):
+            raise rd.error((*p, "region"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m] with min < max, got {reg!r}")
+        n = rd.integer(w, "count", p, 10)
+        rad = rd.num(w, "radius_m", p, 0.02, lo=0.0, lo_open=True)
+        xy = wrng.uniform((reg[0], reg[1]), (reg[2], reg[3]), (n, 2))
+        world.add_circles(np.column_stack((xy, np.full(n, rad))))
+    for i, h in enumerate(rd.tables(data, "holes")):
+        p = ("holes", i)
+        rd.keys(h, p, {"x_m", "y_m", "size_x_m", "size_y_m", "depth_m", "yaw_deg", "shape"})
+        world.holes.append(Hole(rd.num(h, "x_m", p, required=True), rd.num(h, "y_m", p, required=True),
+                                rd.num(h, "size_x_m", p, required=True, lo=0.0, lo_open=True),
+                                rd.num(h, "size_y_m", p, required=True, lo=0.0, lo_open=True),
+                                rd.num(h, "depth_m", p, required=True, lo=0.0, lo_open=True),
+                                math.radians(rd.num(h, "yaw_deg", p, 0.0)),
+                                rd.string(h, "shape", p, "box", choices=("box", "ellipse")) == "ellipse"))
+    for i, s in enumerate(rd.tables(data, "steps")):
+        p = ("steps", i)
+        rd.keys(s, p, {"x_m", "y_m", "yaw_deg", "height_m", "width_m", "depth_m"})
+        world.steps.append(Step(rd.num(s, "x_m", p, required=True), rd.num(s, "y_m", p, required=True),
+                                math.radians(rd.num(s, "yaw_deg", p, 0.0)), rd.num(s, "height_m", p, required=True),
+                                rd.num(s, "width_m", p, math.inf, lo=0.0, lo_open=True), rd.num(s, "depth_m", p, math.inf, lo=0.0, lo_open=True)))
+    for i, r in enumerate(rd.tables(data, "ruts")):
+        p = ("ruts", i)
+        rd.keys(r, p, {"points", "width_m", "depth_m", "count", "spacing_m"})
+        cnt = rd.integer(r, "count", p, 1, lo=1)
+        if cnt > 2:
+            raise rd.error((*p, "count"), f"must be 1 or 2, got {cnt}")
+        world.ruts.append(Rut(tuple((float(a), float(b)) for a, b in rd.points(r, "points", p)),
+                              rd.num(r, "width_m", p, 0.2, lo=0.0, lo_open=True), rd.num(r, "depth_m", p, 0.1, lo=0.0, lo_open=True),
+                              rd.num(r, "spacing_m", p, 0.0 if cnt == 1 else 1.2, lo=0.0), cnt))
+
+    goals: list[Goal] = []
+    for i, g in enumerate(rd.tables(data, "goals")):
+        p = ("goals", i)
+        rd.keys(g, p, {"x_m", "y_m", "yaw_deg", "arrival_s", "tolerance_m"})
+        yaw = rd.opt_num(g, "yaw_deg", p)
+        goals.append(Goal(rd.num(g, "x_m", p, required=True), rd.num(g, "y_m", p, required=True),
+                          None if yaw is None else math.radians(yaw), rd.opt_num(g, "arrival_s", p, lo=0.0),
+                          rd.num(g, "tolerance_m", p, 0.3, lo=0.0, lo_open=True)))
+    if not goals:
+        raise ScenarioError("goals", None, "at least one [[goals]] entry is required", source)
+
+    laser = None
+    if "laser" in data:
+        lt = rd.table(data, "laser", ())
+        rd.keys(lt, ("laser",), {"model", "mount", "range_std_m", "dropout_prob", "mixed_pixel_prob", "max_range_m", "no_return"})
+        laser = Laser2D(_laser_spec(rd, lt, ("laser",), "tim561"), rd.pose(lt, "mount", ("laser",)) if "mount" in lt else Pose2D())
+    tilted = None
+    if "tilted_laser" in data:
+        tp: Path_ = ("tilted_laser",)
+        tt = rd.table(data, "tilted_laser", ())
+        rd.keys(tt, tp, {"model", "mount", "height_m", "tilt_deg", "range_std_m", "dropout_prob", "mixed_pixel_prob",
+                         "max_range_m", "no_return"})
+        tilted = TiltedLaser(_laser_spec(rd, tt, tp, "lms200"), rd.num(tt, "height_m", tp, 0.5, lo=0.0, lo_open=True),
+                             math.radians(rd.num(tt, "tilt_deg", tp, 20.0, lo=0.0, lo_open=True, hi=89.0)),
+                             rd.pose(tt, "mount", tp) if "mount" in tt else Pose2D())
+    sonar = None
+    if "sonar" in data:
+        so = rd.table(data, "sonar", ())
+        sop: Path_ = ("sonar",)
+        allowed = {f.name for f in fields(SonarSpec)} - {"spacing_rad", "cone_rad"} | {"enabled", "cone_deg", "spacing_deg"}
+        rd.keys(so, sop, allowed)
+        if rd.boolean(so, "enabled", sop, True):
+            kw: dict[str, Any] = {}
+            for k in so:
+                if k in ("count", "rays_per_cone"):
+                    kw[k] = rd.integer(so, k, sop, 12, lo=1)
+                elif k in ("cone_deg", "spacing_deg"):
+                    kw[k.replace("_deg", "_rad")] = math.radians(rd.num(so, k, sop, lo=0.0, lo_open=True, hi=179.0))
+                elif k != "enabled":
+                    kw[k] = rd.num(so, k, sop, lo=0.0)
+            try:
+                sonar = SonarRing(SonarSpec(**kw))
+            except ValueError as e:
+                raise rd.error(sop, str(e)) from None
+
+    meta = rd.table(data, "meta", ())
+    bounds = sc.get("bounds")
+    if bounds is not None:
+        if not (isinstance(bounds, list) and len(bounds) == 4 and all(isinstance(x, (int, float)) for x in bounds)
+                and bounds[0] < bounds[2] and bounds[1] < bounds[3]):
+            raise rd.error((*sp, "bounds"), "must be [xmin_m, ymin_m, xmax_m, ymax_m] with min < max")
+        world.bounds = tuple(float(x) for x in bounds)  # type: ignore[assignment]
+    else:
+        xs = [start.x_m] + [g.x_m for g in goals]
+        ys = [start.y_m] + [g.y_m for g in goals]
+        if len(world.segments):
+            xs += world.segments[:, [0, 2]].ravel().tolist()
+            ys += world.segments[:, [1, 3]].ravel().tolist()
+        if len(world.circles):
+            xs += world.circles[:, 0].tolist()
+            ys += world.circles[:, 1].tolist()
+        world.bounds = (min(xs) - 1, min(ys) - 1, max(xs) + 1, max(ys) + 1)
+
+    return Scenario(name, description, world, kind, params, start, goals, duration, dt, control_hz, vmax,
+                    laser, tilted, sonar, dict(meta))
+
+
+def _scenario_dir() -> Any:
+    return resources.files("agnav_host.sim").joinpath("scenarios")
+
+
+def builtin_names() -> list[str]:
+    """Names of the built-in scenarios, sorted."""
+    return sorted(p.name[:-5] for p in _scenario_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_text(name: str) -> str:
+    """TOML text of a built-in scenario; KeyError lists the names on a miss."""
+    f = _scenario_dir().joinpath(f"{name}.toml")
+    if not f.is_file():
+        raise KeyError(f"unknown scenario {name!r}; built-ins: {', '.join(builtin_names())}")
+    return str(f.read_text(encoding="utf-8"))
+
+
+def builtin_descriptions() -> dict[str, str]:
+    """name -> one-line description of every built-in scenario."""
+    out = {}
+    for n in builtin_names():
+        d = tomllib.loads(builtin_text(n)).get("scenario", {}).get("description", "")
+        out[n] = d.strip().splitlines()[0] if d.strip() else ""
+    return out
+
+
+def load_scenario(name_or_path: str | Path | None = None) -> Scenario:
+    """A built-in scenario by name, a scenario file by path, or the default when None."""
+    if name_or_path is None:
+        name_or_path = DEFAULT_SCENARIO
+    s = str(name_or_path)
+    if s in builtin_names():
+        return parse_scenario(builtin_text(s), f"<builtin:{s}>")
+    p = Path(s)
+    if p.suffix == ".toml" or p.exists():
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as e:
+            raise ScenarioError("<file>", None, f"cannot read scenario file: {e.strerror}", str(p)) from None
+        return parse_scenario(text, str(p))
+    raise ScenarioError("<name>", None, f"unknown scenario {s!r}; built-ins: {', '.join(builtin_names())}", s)
