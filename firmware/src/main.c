@@ -1,7 +1,7 @@
 /* AgNav robot controller: wiring and the scheduler table only. */
 #include "hal.h"
 
-#include <agnav/mavlink.h>
+#include <agnav_mavlink.h>
 
 static mavlink_system_t s_system = {1, MAV_COMP_ID_AUTOPILOT1};
 

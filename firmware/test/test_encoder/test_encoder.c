@@ -283,7 +283,7 @@ static void test_encoder_update_count_method_at_40khz_edges(void)
     }
     encoder_motion(0, &m);
     TEST_ASSERT_EQUAL_UINT8(ENCODER_SPEED_COUNT, m.method);
-    TEST_ASSERT_EQUAL_INT32_MESSAGE(800 * 50, m.delta_um, "40 mm per tick");
+    TEST_ASSERT_EQUAL_INT32_MESSAGE(800L * 50L, m.delta_um, "40 mm per tick");
     TEST_ASSERT_INT32_WITHIN_MESSAGE(2, 2000, m.speed_mm_s, "40k counts/s * 50 um");
     encoder_motion(1, &m);
     TEST_ASSERT_INT32_WITHIN_MESSAGE(2, -2000, m.speed_mm_s, "backward wheel");

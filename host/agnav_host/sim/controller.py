@@ -58,16 +58,19 @@ class GoalSeekParams:
     lookahead_m: float = 2.0
     yaw_gain: float = 2.0
     n_directions: int = 73
-    hysteresis: float = 0.15  # penalty per rad of change from the previous choice
+    hysteresis: float = 0.3  # penalty, m per rad of change from the previous choice
     slow_radius_m: float = 0.6  # slow down when the goal is nearer than this
+    footprint_offset_m: float = 0.0  # footprint centre ahead of the reference point (Ackermann: L/2)
 
 
 class GoalSeek:
     """Reactive goal seeking over the laser scan (a gap-following rule with hysteresis).
 
     Each step, for directions across +-135 deg (+-90 deg for Ackermann) it computes how far the robot's
-    disc could drive straight (:func:`free_distances_m`); among directions free for
-    min(goal distance, lookahead) it takes the one closest to the goal bearing, else the most open one.
+    disc could drive straight (:func:`free_distances_m`), and picks the direction with the largest
+    progress towards the goal, ``min(free, goal distance, lookahead) * cos(direction - goal bearing)``,
+    less a hysteresis penalty for changing its mind; when no direction makes progress it heads for
+    the most open one.
     A differential drive turns on the spot when the chosen direction is more than 60 deg off; an
     Ackermann robot steers by pure pursuit towards a point on that direction.
     """
@@ -94,19 +97,19 @@ class GoalSeek:
             wy = sp.y_m + s * local[:, 0] + c * local[:, 1]
             c0, s0 = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
             dx, dy = wx - pose.x_m, wy - pose.y_m
-            pts = np.column_stack((c0 * dx + s0 * dy, -s0 * dx + c0 * dy))
+            pts = np.column_stack((c0 * dx + s0 * dy - p.footprint_offset_m, -s0 * dx + c0 * dy))
         span = math.radians(135.0) if p.kinematics == "diff_drive" else math.radians(90.0)
         dirs = np.linspace(-span, span, p.n_directions)
         dirs = np.unique(np.append(dirs, np.clip(g_rel, -span, span)))
         w = p.radius_m + p.margin_m
         free = free_distances_m(pts, dirs, w, p.lookahead_m)
         need = min(d_goal, p.lookahead_m)
-        ok = free >= need - 1e-6
-        cost = np.abs(dirs - g_rel) + p.hysteresis * np.abs(dirs - self._prev)
-        if ok.any():
-            i = int(np.argmin(np.where(ok, cost, np.inf)))
-        else:
-            i = int(np.argmax(free - 0.3 * np.abs(dirs - g_rel)))
+        # progress towards the goal a straight move along each direction would make, m
+        progress = np.minimum(free, need) * np.cos(dirs - g_rel) - p.hysteresis * np.abs(dirs - self._prev)
+        if progress.max() > 0.05:
+            i = int(np.argmax(progress))
+        else:  # boxed in: head for the most open direction
+            i = int(np.argmax(free - p.hysteresis * np.abs(dirs - self._prev)))
         theta = float(dirs[i])
         self._prev = theta
         ahead = float(free_distances_m(pts, np.array([0.0]), w, p.lookahead_m)[0])

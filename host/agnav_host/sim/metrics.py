@@ -78,7 +78,16 @@ def menger_curvature(xy: FloatArray) -> FloatArray:
 
 
 def bending_energy(xy: FloatArray, ds_m: float = 0.05) -> float:
-    """Integral of squared curvature along a path (n, 2), 1/m. See the module docstring."""
+    """Integral of squared curvature along a path (n, 2), 1/m. See the module docstring.
+
+    ``ds_m`` is the resampling step; it is raised to the median input spacing when that is coarser.
+    """
+    xy = np.asarray(xy, dtype=float)
+    if len(xy) > 1:  # never resample finer than the input: chords would concentrate the curvature
+        seg = np.hypot(*np.diff(xy, axis=0).T)
+        seg = seg[seg > 1e-12]
+        if len(seg):
+            ds_m = max(ds_m, float(np.median(seg)))
     p = resample_path(xy, ds_m)
     if len(p) < 3:
         return 0.0

@@ -18,7 +18,7 @@ import numpy as np
 from ..types import DriveCommand, Goal, Observation
 from .controller import GoalSeekParams, make_standin
 from .metrics import RunMetrics
-from .robots import Ackermann, AckermannParams
+from .robots import AckermannParams
 from .scenario import Scenario
 
 __all__ = ["RunResult", "run_scenario", "write_outputs", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
@@ -44,7 +44,8 @@ def _standin_params(sc: Scenario) -> GoalSeekParams:
     if isinstance(p, AckermannParams):
         vmin = p.true_speed.pos_value[0] if p.true_speed is not None and p.true_speed.pos_value else 0.0
         return GoalSeekParams(kinematics="ackermann", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s, min_speed_m_s=vmin,
-                              wheelbase_m=p.wheelbase_m, max_steer_rad=p.max_steer_rad, margin_m=0.1, lookahead_m=2.5)
+                              wheelbase_m=p.wheelbase_m, max_steer_rad=p.max_steer_rad, margin_m=0.1, lookahead_m=2.5,
+                              footprint_offset_m=0.5 * p.wheelbase_m)
     return GoalSeekParams(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s)
 
 
@@ -124,8 +125,6 @@ def run_scenario(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
         last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s,
     )
-    if isinstance(robot, Ackermann):
-        pass
     return RunResult(sc.name, planner, seed, metrics, rows, reason)
 
 

@@ -94,7 +94,10 @@ def _apply_noise(spec: LaserSpec, r: FloatArray, rng: np.random.Generator | None
         if spec.mixed_pixel_prob > 0 and len(r) > 1:
             # where neighbouring beams straddle an edge, one of the two may report a blend of both
             a, b = r[:-1], r[1:]
-            edge = np.nonzero(np.isfinite(a) & np.isfinite(b) & (np.abs(a - b) > spec.mixed_pixel_jump_m))[0]
+            both = np.isfinite(a) & np.isfinite(b)
+            with np.errstate(invalid="ignore"):
+                jump = np.abs(np.where(both, a - b, 0.0))
+            edge = np.nonzero(both & (jump > spec.mixed_pixel_jump_m))[0]
             if len(edge):
                 pick = edge[rng.random(len(edge)) < spec.mixed_pixel_prob]
                 if len(pick):

@@ -87,6 +87,11 @@ else:
         LIBS=["m"],
     )
 
+if target == "arm":
+    # Start-up code and vector table, linked into every ARM image (firmware and each
+    # unit test) like a framework's core would be; see firmware/boot/.
+    env.BuildSources(join("$BUILD_DIR", "boot"), join("$PROJECT_DIR", board.get("build.startup")))
+
 target_elf = env.BuildProgram()
 default_targets = [target_elf]
 

@@ -1,5 +1,5 @@
 /* Minimal STM32F405 start-up: vector table, .data/.bss set-up, FPU on, then main(). */
-#if defined(__arm__)
+#if defined(__arm__) /* built by the platform for ARM boards only */
 
 #include <stdint.h>
 

@@ -1,0 +1,298 @@
+/*
+ * Integer dead reckoning. See odometry.h for the model, frames and error
+ * budget. Pure logic: no HAL calls.
+ */
+#include "odometry.h"
+
+#include <stddef.h>
+
+#include "units.h"
+
+/* sin(i * 90deg / 64) in Q15 (32768 = 1.0), i = 0..64. Linear interpolation
+ * between entries: max error (pi/128)^2 / 8 = 7.5e-5, plus 1.5e-5 rounding. */
+static const UNITS_ROM uint16_t SIN_Q15[65] = {
+    0, 804, 1608, 2411, 3212, 4011, 4808, 5602, 6393, 7180, 7962, 8740, 9512,
+    10279, 11039, 11793, 12540, 13279, 14010, 14733, 15447, 16151, 16846, 17531,
+    18205, 18868, 19520, 20160, 20788, 21403, 22006, 22595, 23170, 23732, 24279,
+    24812, 25330, 25833, 26320, 26791, 27246, 27684, 28106, 28511, 28899, 29269,
+    29622, 29957, 30274, 30572, 30853, 31114, 31357, 31581, 31786, 31972, 32138,
+    32286, 32413, 32522, 32610, 32679, 32729, 32758, 32768,
+};
+
+/* tan(i * 0.5 degrees) in Q24 (16777216 = 1.0), i = 0..90. Curvature needs
+ * relative accuracy at small angles, hence 24 bits. Linear interpolation
+ * overestimates by at most h^2/8 * tan'' with h = 0.5 deg: relative 1.9e-5
+ * below 20 deg, absolute 3.8e-5 at 45 deg. 364 bytes, in flash on AVR. */
+static const UNITS_ROM uint32_t TAN_Q24[91] = {
+    0ul, 146413ul, 292847ul, 439327ul, 585873ul, 732509ul, 879257ul, 1026138ul, 1173177ul,
+    1320396ul, 1467816ul, 1615462ul, 1763356ul, 1911522ul, 2059983ul, 2208762ul, 2357884ul,
+    2507372ul, 2657250ul, 2807543ul, 2958276ul, 3109473ul, 3261160ul, 3413363ul, 3566107ul,
+    3719419ul, 3873326ul, 4027853ul, 4183030ul, 4338883ul, 4495441ul, 4652734ul, 4810789ul,
+    4969638ul, 5129310ul, 5289836ul, 5451248ul, 5613578ul, 5776859ul, 5941124ul, 6106407ul,
+    6272744ul, 6440170ul, 6608721ul, 6778435ul, 6949350ul, 7121506ul, 7294941ul, 7469698ul,
+    7645818ul, 7823344ul, 8002322ul, 8182795ul, 8364811ul, 8548419ul, 8733666ul, 8920604ul,
+    9109285ul, 9299763ul, 9492092ul, 9686330ul, 9882535ul, 10080768ul, 10281091ul,
+    10483568ul, 10688265ul, 10895251ul, 11104597ul, 11316375ul, 11530661ul, 11747533ul,
+    11967072ul, 12189361ul, 12414487ul, 12642539ul, 12873611ul, 13107798ul, 13345200ul,
+    13585922ul, 13830070ul, 14077756ul, 14329096ul, 14584211ul, 14843227ul, 15106273ul,
+    15373486ul, 15645007ul, 15920984ul, 16201569ul, 16486924ul, 16777216ul
+};
+
+/* 2^48 / (2 pi): binary-angle units (2^32 per turn) per radian, times 2^16. */
+#define BAM_PER_RAD_Q16 44798133900177ull
+/* 18000 / pi * 65536: cdeg per radian in Q16. */
+#define CDEG_PER_RAD_Q16 375493621ul
+#define QUARTER_TURN_BAM 0x40000000ul
+#define MAX_SUBSTEP_UM 32767L
+
+static struct {
+    uint32_t heading_bam;
+    int32_t x_mm;
+    int32_t y_mm;
+    int16_t x_rem_um; /* 0..999 */
+    int16_t y_rem_um;
+    uint8_t half_um;  /* differential: carried half micrometre of (l + r) / 2 */
+    int32_t speed_mm_s;
+    int32_t yaw_rate_cdeg_s;
+    uint32_t k_yaw_diff; /* heading bam per um of (right - left), Q16 */
+    uint32_t k_yaw_ack;  /* heading bam per um at tan = 1, Q16 */
+    uint32_t k_rate_diff; /* cdeg/s per mm/s of (right - left), Q16 */
+    uint32_t k_rate_ack;  /* cdeg/s per mm/s at tan = 1, Q16 */
+} s_odom;
+
+/* ---- table helpers ------------------------------------------------------ */
+
+/* sin of a first-quadrant angle a in [0, 2^30] (2^30 = 90 deg), Q15. */
+static int32_t quarter_sin(uint32_t a)
+{
+    uint8_t idx = (uint8_t)(a >> 24); /* 64 intervals */
+    if (idx >= 64u) {
+        return (int32_t)SIN_Q15[64];
+    }
+    int32_t y0 = (int32_t)SIN_Q15[idx];
+    int32_t dy = (int32_t)SIN_Q15[idx + 1u] - y0; /* <= 804 */
+    int32_t frac = (int32_t)((a >> 8) & 0xFFFFu); /* 16-bit position inside the interval */
+    return y0 + ((dy * frac + 32768L) >> 16);
+}
+
+int32_t odom_sin_q15(uint32_t angle_bam)
+{
+    uint32_t a = angle_bam & (QUARTER_TURN_BAM - 1u);
+    switch ((uint8_t)(angle_bam >> 30)) {
+    case 0u:
+        return quarter_sin(a);
+    case 1u:
+        return quarter_sin(QUARTER_TURN_BAM - a);
+    case 2u:
+        return -quarter_sin(a);
+    default:
+        return -quarter_sin(QUARTER_TURN_BAM - a);
+    }
+}
+
+int32_t odom_cos_q15(uint32_t angle_bam)
+{
+    return odom_sin_q15(angle_bam + QUARTER_TURN_BAM);
+}
+
+int32_t odom_tan_q24(int32_t angle_cdeg)
+{
+    int32_t a = angle_cdeg < 0 ? -angle_cdeg : angle_cdeg;
+    if (a > ODOM_STEER_LIMIT_CDEG) {
+        a = ODOM_STEER_LIMIT_CDEG;
+    }
+    /* (x * 5243) >> 18 == x / 50 for 0 <= x <= 4500 (no division). */
+    uint8_t idx = (uint8_t)((a * 5243L) >> 18);
+    int32_t t;
+    if (idx >= 90u) {
+        t = (int32_t)TAN_Q24[90];
+    } else {
+        int32_t frac = a - (int32_t)idx * 50L; /* 0..49 cdeg */
+        int32_t y0 = (int32_t)TAN_Q24[idx];
+        int32_t dy = (int32_t)TAN_Q24[idx + 1u] - y0; /* < 2^19 */
+        t = y0 + (int32_t)(((int64_t)dy * frac * 5243L + (1L << 17)) >> 18);
+    }
+    return angle_cdeg < 0 ? -t : t;
+}
+
+uint32_t odom_bam_from_cdeg(int32_t angle_cdeg)
+{
+    int32_t c = units_wrap_cdeg(angle_cdeg);
+    /* c * 2^32 / 36000, rounded; 64-bit division, used only when a pose is set. */
+    int64_t num = (int64_t)c * 4294967296LL;
+    int64_t q = (num >= 0 ? num + 18000 : num - 18000) / 36000;
+    return (uint32_t)q;
+}
+
+int32_t odom_cdeg_from_bam(uint32_t angle_bam)
+{
+    int64_t v = (int64_t)(int32_t)angle_bam * 36000LL + (1LL << 31);
+    int32_t c = (int32_t)(v >> 32); /* floor((h * 36000 + 2^31) / 2^32): round to nearest */
+    return c <= -18000 ? 18000 : c;
+}
+
+/* ---- integration -------------------------------------------------------- */
+
+/* Add d_um to a (mm, 0..999 um) pair. |d_um| <= 2^16. */
+static void add_um(int32_t *mm, int16_t *rem_um, int32_t d_um)
+{
+    int16_t r;
+    *mm += units_floordiv1000((int32_t)*rem_um + d_um, &r);
+    *rem_um = r;
+}
+
+/* One sub-step: travel ds_um (|ds_um| <= 32768) at the midpoint heading,
+ * heading change dth_bam (signed). */
+static void substep(int32_t ds_um, int32_t dth_bam)
+{
+    uint32_t mid = s_odom.heading_bam + (uint32_t)(dth_bam / 2);
+    if (ds_um != 0) {
+        /* |ds| * 32768 <= 2^30: fits int32 with rounding. */
+        int32_t dx = (ds_um * odom_cos_q15(mid) + 16384L) >> 15;
+        int32_t dy = (ds_um * odom_sin_q15(mid) + 16384L) >> 15;
+        add_um(&s_odom.x_mm, &s_odom.x_rem_um, dx);
+        add_um(&s_odom.y_mm, &s_odom.y_rem_um, dy);
+    }
+    s_odom.heading_bam += (uint32_t)dth_bam;
+}
+
+/* Smallest shift so that |a| >> shift and |b| >> shift fit a sub-step. */
+static uint8_t split_shift(int32_t a, int32_t b)
+{
+    uint32_t ma = a < 0 ? (uint32_t)0 - (uint32_t)a : (uint32_t)a;
+    uint32_t mb = b < 0 ? (uint32_t)0 - (uint32_t)b : (uint32_t)b;
+    uint32_t m = ma > mb ? ma : mb;
+    uint8_t sh = 0u;
+    while ((m >> sh) > (uint32_t)MAX_SUBSTEP_UM) {
+        sh++;
+    }
+    return sh;
+}
+
+/* Piece i of n = 2^sh pieces of v: floor(v / n), plus one for the first
+ * (v mod n) pieces, so the pieces add up to v exactly and each is <= 32768. */
+static int32_t piece(int32_t v, uint8_t sh, uint32_t i)
+{
+    int32_t q = v >> sh; /* floor */
+    uint32_t rem = (uint32_t)(v - (int32_t)((uint32_t)q << sh));
+    return q + (i < rem ? 1 : 0);
+}
+
+static void diff_substep(int32_t l_um, int32_t r_um)
+{
+    /* Centre travel (l + r) / 2, keeping the odd half micrometre. */
+    int32_t sum = l_um + r_um + (int32_t)s_odom.half_um;
+    s_odom.half_um = (uint8_t)(sum & 1);
+    int32_t ds = sum >> 1;
+    /* dth = (r - l) / track, in bam: |r - l| <= 2^16, k < 2^32. */
+    int64_t t = (int64_t)(r_um - l_um) * (int64_t)s_odom.k_yaw_diff + 32768;
+    substep(ds, (int32_t)(t >> 16));
+}
+
+static void ack_substep(int32_t ds_um, int64_t kappa_q16)
+{
+    /* dth = ds * curvature, in bam: |ds| <= 2^15, |kappa| < 2^32. */
+    int64_t t = (int64_t)ds_um * kappa_q16 + 32768;
+    substep(ds_um, (int32_t)(t >> 16));
+}
+/* ---- public ------------------------------------------------------------- */
+
+bool odom_init(const odom_cfg_t *cfg)
+{
+    uint16_t track_mm = ODOM_DEFAULT_TRACK_MM;
+    uint16_t wheelbase_mm = ODOM_DEFAULT_WHEELBASE_MM;
+    bool ok = true;
+    if (cfg != NULL) {
+        if (cfg->model > (uint8_t)ODOM_MODEL_ACKERMANN) {
+            ok = false;
+        }
+        /* Below 11 mm the Q16 heading gain would not fit 32 bits. */
+        if (cfg->track_mm >= 11u) {
+            track_mm = cfg->track_mm;
+        } else if (cfg->track_mm != 0u) {
+            ok = false;
+        }
+        if (cfg->wheelbase_mm >= 11u) {
+            wheelbase_mm = cfg->wheelbase_mm;
+        } else if (cfg->wheelbase_mm != 0u) {
+            ok = false;
+        }
+    }
+    s_odom.heading_bam = 0u;
+    s_odom.x_mm = 0;
+    s_odom.y_mm = 0;
+    s_odom.x_rem_um = 0;
+    s_odom.y_rem_um = 0;
+    s_odom.half_um = 0u;
+    s_odom.speed_mm_s = 0;
+    s_odom.yaw_rate_cdeg_s = 0;
+    /* Init-time 64-bit divisions, rounded. */
+    s_odom.k_yaw_diff = (uint32_t)((BAM_PER_RAD_Q16 + (uint64_t)track_mm * 500u) / ((uint64_t)track_mm * 1000u));
+    s_odom.k_yaw_ack = (uint32_t)((BAM_PER_RAD_Q16 + (uint64_t)wheelbase_mm * 500u) /
+                                  ((uint64_t)wheelbase_mm * 1000u));
+    s_odom.k_rate_diff = (CDEG_PER_RAD_Q16 + track_mm / 2u) / track_mm;
+    s_odom.k_rate_ack = (CDEG_PER_RAD_Q16 + wheelbase_mm / 2u) / wheelbase_mm;
+    return ok;
+}
+
+void odom_set_pose(int32_t x_mm, int32_t y_mm, int32_t heading_cdeg)
+{
+    s_odom.x_mm = x_mm;
+    s_odom.y_mm = y_mm;
+    s_odom.x_rem_um = 0;
+    s_odom.y_rem_um = 0;
+    s_odom.half_um = 0u;
+    s_odom.heading_bam = odom_bam_from_cdeg(heading_cdeg);
+}
+
+void odom_update_diff(int32_t left_um, int32_t right_um, int32_t left_mm_s, int32_t right_mm_s)
+{
+    uint8_t sh = split_shift(left_um, right_um);
+    uint32_t n = (uint32_t)1u << sh;
+    for (uint32_t i = 0; i < n; i++) {
+        diff_substep(piece(left_um, sh, i), piece(right_um, sh, i));
+    }
+    s_odom.speed_mm_s = (int32_t)(((int64_t)left_mm_s + right_mm_s) / 2);
+    int64_t w = ((int64_t)right_mm_s - left_mm_s) * (int64_t)s_odom.k_rate_diff;
+    s_odom.yaw_rate_cdeg_s = (int32_t)((w + 32768) >> 16);
+}
+
+void odom_update_ackermann(int32_t rear_um, int32_t steer_cdeg, int32_t rear_mm_s)
+{
+    int32_t tan_q24 = odom_tan_q24(steer_cdeg);
+    /* Curvature tan(steer) / L as heading bam per um, Q16 (once per call). */
+    int64_t kappa_q16 = ((int64_t)tan_q24 * (int64_t)s_odom.k_yaw_ack + (1LL << 23)) >> 24;
+    uint8_t sh = split_shift(rear_um, 0);
+    uint32_t n = (uint32_t)1u << sh;
+    for (uint32_t i = 0; i < n; i++) {
+        ack_substep(piece(rear_um, sh, i), kappa_q16);
+    }
+    s_odom.speed_mm_s = rear_mm_s;
+    /* yaw rate = v * tan / L; v limited to +-2^20 mm/s so 64 bits suffice. */
+    int32_t v = rear_mm_s;
+    if (v > (1L << 20)) {
+        v = 1L << 20;
+    } else if (v < -(1L << 20)) {
+        v = -(1L << 20);
+    }
+    int64_t vt_q15 = ((int64_t)v * tan_q24 + 256) >> 9;
+    int64_t w = vt_q15 * (int64_t)s_odom.k_rate_ack;
+    s_odom.yaw_rate_cdeg_s = (int32_t)((w + (1LL << 30)) >> 31);
+}
+
+void odom_get(odom_pose_t *out)
+{
+    if (out == NULL) {
+        return;
+    }
+    out->x_mm = s_odom.x_mm;
+    out->y_mm = s_odom.y_mm;
+    out->heading_cdeg = odom_cdeg_from_bam(s_odom.heading_bam);
+    out->speed_mm_s = s_odom.speed_mm_s;
+    out->yaw_rate_cdeg_s = s_odom.yaw_rate_cdeg_s;
+}
+
+uint32_t odom_heading_bam(void)
+{
+    return s_odom.heading_bam;
+}

@@ -1,0 +1,55 @@
+/*
+ * Tunable parameters, exposed to ground stations through the standard MAVLink
+ * parameter protocol (PARAM_REQUEST_LIST / PARAM_REQUEST_READ / PARAM_SET ->
+ * PARAM_VALUE). Each module declares its rows next to its code; main.c hands
+ * the whole const table to params_init(). Values live in the modules' own
+ * variables; this module only reads, range-checks and writes them.
+ *
+ * Wire encoding: every parameter is sent as MAV_PARAM_TYPE_INT32 with the value
+ * C-cast to the float field (as ArduPilot and MAVProxy do); values stay below
+ * 2^24 so the cast is exact. Units are in the names (_MS, _MM, _MM_S, _CDEG).
+ * Keys are append-only: never reorder or reuse a row.
+ */
+#ifndef AGNAV_PARAMS_H
+#define AGNAV_PARAMS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#define PARAMS_NAME_LEN 16u /* MAVLink param_id length; names shorter are NUL-terminated */
+
+typedef enum { PARAM_U8 = 0, PARAM_U16 = 1, PARAM_I16 = 2, PARAM_I32 = 3 } param_type_t;
+
+typedef struct {
+    char name[PARAMS_NAME_LEN + 1u];
+    param_type_t type;
+    void *value;     /* the module's own variable */
+    int32_t min;
+    int32_t max;
+    int32_t fallback; /* default, used by params_reset_defaults() */
+} param_def_t;
+
+typedef enum {
+    PARAMS_OK = 0,
+    PARAMS_UNKNOWN = -1,
+    PARAMS_OUT_OF_RANGE = -2,
+    PARAMS_STORAGE = -3
+} params_result_t;
+
+/* Register the table (kept by reference; must be static const). */
+void params_init(const param_def_t *table, uint16_t count);
+uint16_t params_count(void);
+/* Find by name (up to 16 chars, not necessarily NUL-terminated); -1 when unknown. */
+int16_t params_find(const char *name);
+const param_def_t *params_def(uint16_t index);
+int32_t params_get(uint16_t index);
+/* Range-checked set; out-of-range values are refused and the old value stays. */
+params_result_t params_set(uint16_t index, int32_t value);
+void params_reset_defaults(void);
+
+/* EEPROM persistence at addr: {magic, count, values[], crc16}. Load falls back to
+ * defaults (returning PARAMS_STORAGE) when missing, corrupt or of another table size. */
+params_result_t params_save(uint16_t addr);
+params_result_t params_load(uint16_t addr);
+
+#endif

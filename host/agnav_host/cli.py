@@ -1,0 +1,174 @@
+"""``agnav`` command line: a registry of subcommands, each a thin wrapper around library calls.
+
+Add a subcommand with the :func:`subcommand` decorator::
+
+    @subcommand("name", help="one line", args=[(("--flag",), {"type": int})])
+    def _cmd_name(ns: argparse.Namespace) -> int: ...
+
+Options that take numbers which may be negative (``--goal -3,5,90``) are listed in
+``NEGATIVE_VALUE_OPTIONS``; :func:`main` joins them with their value (``--goal=-3,5,90``) before
+argparse sees the value, which it would otherwise take for an option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "NEGATIVE_VALUE_OPTIONS", "build_parser"]
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+@dataclass(frozen=True)
+class _Sub:
+    name: str
+    help: str
+    handler: Handler
+    args: tuple[tuple[tuple[str, ...], dict[str, Any]], ...]
+
+
+SUBCOMMANDS: dict[str, _Sub] = {}
+NEGATIVE_VALUE_OPTIONS: set[str] = set()
+_NUMLIST = re.compile(r"^-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)*$")
+
+
+def subcommand(name: str, help: str, args: Sequence[tuple[tuple[str, ...], dict[str, Any]]] = (),
+               negative_ok: Sequence[str] = ()) -> Callable[[Handler], Handler]:
+    """Register ``fn`` as ``agnav <name>``; ``negative_ok`` names options whose values may start with '-'."""
+
+    def deco(fn: Handler) -> Handler:
+        if name in SUBCOMMANDS:
+            raise ValueError(f"subcommand {name!r} registered twice")
+        SUBCOMMANDS[name] = _Sub(name, help, fn, tuple(args))
+        NEGATIVE_VALUE_OPTIONS.update(negative_ok)
+        return fn
+
+    return deco
+
+
+def parse_goal(text: str) -> tuple[float, float, float | None]:
+    """``X,Y`` or ``X,Y,HEADING_DEG`` -> (x_m, y_m, heading_deg or None). Negative numbers are fine."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) not in (2, 3):
+        raise argparse.ArgumentTypeError(f"goal must be X,Y or X,Y,HEADING_DEG, got {text!r}")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"goal must contain numbers, got {text!r}") from None
+    if not all(math.isfinite(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"goal values must be finite, got {text!r}")
+    return vals[0], vals[1], vals[2] if len(vals) == 3 else None
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in NEGATIVE_VALUE_OPTIONS and i + 1 < len(argv) and _NUMLIST.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="agnav", description="AgNav host companion")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for s in SUBCOMMANDS.values():
+        sp = sub.add_parser(s.name, help=s.help, description=s.help)
+        for flags, kw in s.args:
+            sp.add_argument(*flags, **kw)
+        sp.set_defaults(_handler=s.handler)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``agnav`` console script; returns the exit code."""
+    args = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
+    ns = build_parser().parse_args(args)
+    handler: Handler = ns._handler
+    return handler(ns)
+
+
+# ---- subcommands -------------------------------------------------------------------------------
+
+
+@subcommand("scenarios", help="list the built-in simulator scenarios")
+def _cmd_scenarios(ns: argparse.Namespace) -> int:
+    from .sim.scenario import DEFAULT_SCENARIO, builtin_descriptions
+
+    for name, desc in builtin_descriptions().items():
+        mark = " (default)" if name == DEFAULT_SCENARIO else ""
+        print(f"{name:20s} {desc}{mark}")
+    return 0
+
+
+def _planner_names() -> list[str]:
+    from .sim.controller import STANDINS
+
+    return sorted(STANDINS)
+
+
+@subcommand(
+    "sim",
+    help="run a simulator scenario and write summary.json and trajectory.csv",
+    args=[
+        (("scenario",), {"nargs": "?", "default": None, "help": "built-in name or .toml path (default: the default scenario)"}),
+        (("--planner",), {"default": "goal_seek", "help": "controller by name (default goal_seek)"}),
+        (("--seed",), {"type": int, "default": 0, "help": "random seed (default 0)"}),
+        (("--duration",), {"type": float, "default": None, "help": "simulated seconds (default: the scenario's)"}),
+        (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,HDG_DEG]",
+                       "help": "replace the scenario's goals by one goal (m, m, deg); negatives allowed"}),
+        (("--out",), {"required": True, "help": "output directory"}),
+        (("--no-plot",), {"action": "store_true", "help": "skip the PNG even if matplotlib is present"}),
+        (("--quiet",), {"action": "store_true", "help": "no progress on stderr"}),
+    ],
+    negative_ok=["--goal"],
+)
+def _cmd_sim(ns: argparse.Namespace) -> int:
+    from .sim.runner import run_scenario, write_outputs
+    from .sim.scenario import ScenarioError, load_scenario
+    from .types import Goal
+
+    if ns.planner not in _planner_names():
+        print(f"agnav sim: unknown planner {ns.planner!r}; known: {', '.join(_planner_names())}", file=sys.stderr)
+        return 2
+    try:
+        sc = load_scenario(ns.scenario)
+    except ScenarioError as e:
+        print(f"agnav sim: {e}", file=sys.stderr)
+        return 2
+    goal = None
+    if ns.goal is not None:
+        x, y, hdg = ns.goal
+        goal = Goal(x, y, None if hdg is None else math.radians(hdg))
+    last = [-1]
+
+    def progress(t: float, total: float) -> None:
+        pct = int(100 * t / total) // 10 * 10
+        if pct != last[0]:
+            last[0] = pct
+            print(f"\r[{sc.name}] t={t:6.1f}/{total:.0f} s  {pct:3d}%", end="", file=sys.stderr, flush=True)
+
+    result = run_scenario(sc, ns.planner, ns.seed, ns.duration, goal, None if ns.quiet else progress)
+    if not ns.quiet:
+        print(file=sys.stderr)
+    paths = write_outputs(result, ns.out, plot=not ns.no_plot)
+    m = result.metrics
+    print(f"{sc.name}: {result.end_reason}, success={m.success}, time={m.time_s:.2f} s, path={m.path_length_m:.2f} m")
+    for p in paths:
+        print(f"  wrote {p}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
