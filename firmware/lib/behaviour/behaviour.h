@@ -67,9 +67,10 @@ typedef enum {
     BHV_REASON_NO_COMMAND = 15       /* idle: no layer proposed anything, stopped */
 } bhv_reason_t;
 
-/* Mode flags (in.mode_flags). */
+/* Mode flags (in.mode_flags); same bits as link's LINK_ENABLE_*. */
 #define BHV_MODE_FOLLOW_WALL 1u
 #define BHV_MODE_GOAL_SEEK 2u
+#define BHV_MODE_AVOID 4u /* passive motion safety on (link's default); off only for tests/bench work */
 
 /* Tunables. Defaults in BEHAVIOUR_PARAMS_DEFAULT. */
 typedef struct {

@@ -34,7 +34,7 @@ static const int8_t QUAD_INV[16] = {
  * set_count / set_direction_hint with interrupts masked); read only through
  * encoder_snapshot(). */
 typedef struct {
-    int32_t count;
+    uint32_t count; /* unsigned so that the wrap is defined; read as int32_t */
     uint32_t edges;
     uint32_t errors;
     uint32_t last_edge_us;
@@ -84,7 +84,7 @@ static uint32_t s_prev_update_us;
 /* Count one +-1 step and keep the timestamps for the period method. */
 static inline __attribute__((always_inline)) void isr_count(enc_isr_t *e, int8_t step, uint32_t t_us)
 {
-    int32_t c = e->count;
+    uint32_t c = e->count;
     if (step > 0) { /* increment/decrement: no sign extension to 32 bits */
         c++;
     } else {
@@ -154,7 +154,7 @@ bool encoder_snapshot(uint8_t idx, encoder_snapshot_t *out)
     }
     enc_isr_t *e = &s_isr[idx];
     hal_irq_state_t st = hal_irq_save();
-    out->count = e->count;
+    out->count = (int32_t)e->count; /* two's complement view of the wrapping counter */
     out->edges = e->edges;
     out->errors = e->errors;
     out->last_edge_us = e->last_edge_us;
@@ -170,7 +170,7 @@ void encoder_set_count(uint8_t idx, int32_t count)
         return;
     }
     hal_irq_state_t st = hal_irq_save();
-    s_isr[idx].count = count;
+    s_isr[idx].count = (uint32_t)count;
     hal_irq_restore(st);
     s_loop[idx].prev_count = count;
 }
@@ -237,7 +237,7 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
     hal_irq_state_t st = hal_irq_save();
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
         enc_isr_t *e = &s_isr[i];
-        e->count = 0;
+        e->count = 0u;
         e->edges = 0u;
         e->errors = 0u;
         e->last_edge_us = 0u;
@@ -305,12 +305,13 @@ static int32_t travel_um(enc_loop_t *w, int32_t dc)
 }
 
 /* |v| in mm/s for d_um of travel over the interval whose reciprocal is
- * recip_q16 = 65536000 / dt_us. */
-static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
+ * recip_q16 = 65536000 / dt_us; fast_max = largest |d_um| for which
+ * |d_um| * recip_q16 fits 31 bits (both worked out once per update). */
+static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, uint32_t fast_max, int32_t dt_us)
 {
     uint32_t mag = (uint32_t)iabs32(d_um);
     uint32_t v;
-    if (recip_q16 != 0u && mag <= 0x7FFFFFFFu / recip_q16) {
+    if (mag <= fast_max) {
         v = (mag * recip_q16 + 32768u) >> 16;
     } else {
         v = (uint32_t)(((uint64_t)mag * 1000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us);
@@ -325,8 +326,11 @@ void encoder_update(uint32_t now_us)
 {
     int32_t dt_us = (int32_t)(now_us - s_prev_update_us);
     uint32_t recip_q16 = 0u;
+    uint32_t fast_max = 0u;
     if (dt_us > 0) {
-        recip_q16 = (65536000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us; /* one division per update */
+        /* Shared by all wheels: two divisions per update, not per wheel. */
+        recip_q16 = (65536000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us;
+        fast_max = recip_q16 != 0u ? 0x7FFF0000u / recip_q16 : 0u;
         s_prev_update_us = now_us;
     }
 
@@ -350,7 +354,7 @@ void encoder_update(uint32_t now_us)
         if (dt_us <= 0) {
             /* Same instant as the last update: keep the previous speed. */
         } else if (adc >= (int32_t)w->crossover_counts) {
-            w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
+            w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, fast_max, dt_us);
             w->out.method = ENCODER_SPEED_COUNT;
         } else if (s.dir == 0) {
             w->out.speed_mm_s = 0;
@@ -368,7 +372,7 @@ void encoder_update(uint32_t now_us)
             } else if (s.period_us == 0u) {
                 if (dc != 0) {
                     /* First count after a start or a reversal: no period yet. */
-                    w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
+                    w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, fast_max, dt_us);
                     w->out.method = ENCODER_SPEED_COUNT;
                 } else {
                     w->out.speed_mm_s = 0;

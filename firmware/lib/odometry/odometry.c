@@ -141,6 +141,28 @@ static void add_um(int32_t *mm, int16_t *rem_um, int32_t d_um)
     *rem_um = r;
 }
 
+/* Round(d * k / 2^16) for a Q16 gain k. On the AVR a 64-bit multiply costs
+ * ~250 cycles, so when |d| <= 65535 and k < 0x7FFF0000 (true for every
+ * track / wheelbase >= 21 mm) two 32-bit multiplies do it exactly:
+ * d * k = d * k_hi * 2^16 + d * k_lo. */
+static int32_t mul_q16(int32_t d, uint32_t k)
+{
+    uint32_t m = d < 0 ? (uint32_t)0 - (uint32_t)d : (uint32_t)d;
+    uint32_t r;
+    if (m <= 0xFFFFu && k < 0x7FFF0000u) {
+        r = m * (k >> 16) + ((m * (k & 0xFFFFu) + 0x8000u) >> 16);
+    } else {
+        uint64_t w = ((uint64_t)m * k + 0x8000u) >> 16;
+        r = w > 0x7FFFFFFFu ? 0x7FFFFFFFu : (uint32_t)w;
+    }
+    return d < 0 ? -(int32_t)r : (int32_t)r;
+}
+
+static int32_t clamp_i32(int32_t v, int32_t lim)
+{
+    return v > lim ? lim : (v < -lim ? -lim : v);
+}
+
 /* One sub-step: travel ds_um (|ds_um| <= 32768) at the midpoint heading,
  * heading change dth_bam (signed). */
 static void substep(int32_t ds_um, int32_t dth_bam)
@@ -184,17 +206,17 @@ static void diff_substep(int32_t l_um, int32_t r_um)
     int32_t sum = l_um + r_um + (int32_t)s_odom.half_um;
     s_odom.half_um = (uint8_t)(sum & 1);
     int32_t ds = sum >> 1;
-    /* dth = (r - l) / track, in bam: |r - l| <= 2^16, k < 2^32. */
-    int64_t t = (int64_t)(r_um - l_um) * (int64_t)s_odom.k_yaw_diff + 32768;
-    substep(ds, (int32_t)(t >> 16));
+    /* dth = (r - l) / track, in bam: |r - l| <= 2^16. */
+    substep(ds, mul_q16(r_um - l_um, s_odom.k_yaw_diff));
 }
 
-static void ack_substep(int32_t ds_um, int64_t kappa_q16)
+static void ack_substep(int32_t ds_um, uint32_t kappa_mag_q16, bool left)
 {
-    /* dth = ds * curvature, in bam: |ds| <= 2^15, |kappa| < 2^32. */
-    int64_t t = (int64_t)ds_um * kappa_q16 + 32768;
-    substep(ds_um, (int32_t)(t >> 16));
+    /* dth = ds * curvature, in bam: |ds| <= 2^15. */
+    int32_t dth = mul_q16(ds_um, kappa_mag_q16);
+    substep(ds_um, left ? dth : -dth);
 }
+
 /* ---- public ------------------------------------------------------------- */
 
 bool odom_init(const odom_cfg_t *cfg)
@@ -252,32 +274,30 @@ void odom_update_diff(int32_t left_um, int32_t right_um, int32_t left_mm_s, int3
     for (uint32_t i = 0; i < n; i++) {
         diff_substep(piece(left_um, sh, i), piece(right_um, sh, i));
     }
-    s_odom.speed_mm_s = (int32_t)(((int64_t)left_mm_s + right_mm_s) / 2);
-    int64_t w = ((int64_t)right_mm_s - left_mm_s) * (int64_t)s_odom.k_rate_diff;
-    s_odom.yaw_rate_cdeg_s = (int32_t)((w + 32768) >> 16);
+    /* Speeds beyond +-65 m/s are not physical: clamp so 32-bit math holds. */
+    int32_t vl = clamp_i32(left_mm_s, 65535L);
+    int32_t vr = clamp_i32(right_mm_s, 65535L);
+    s_odom.speed_mm_s = (vl + vr) / 2;
+    s_odom.yaw_rate_cdeg_s = mul_q16(vr - vl, s_odom.k_rate_diff);
 }
 
 void odom_update_ackermann(int32_t rear_um, int32_t steer_cdeg, int32_t rear_mm_s)
 {
     int32_t tan_q24 = odom_tan_q24(steer_cdeg);
-    /* Curvature tan(steer) / L as heading bam per um, Q16 (once per call). */
-    int64_t kappa_q16 = ((int64_t)tan_q24 * (int64_t)s_odom.k_yaw_ack + (1LL << 23)) >> 24;
+    bool left = tan_q24 >= 0;
+    uint32_t tan_mag = (uint32_t)(left ? tan_q24 : -tan_q24);
+    /* Once per call: curvature tan(steer) / L as heading bam per um (Q16),
+     * and yaw rate per mm/s (Q16); |tan| <= 2^24 so 64 bits suffice. */
+    uint32_t kappa_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_yaw_ack + (1u << 23)) >> 24);
+    uint32_t krate_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_rate_ack + (1u << 23)) >> 24);
     uint8_t sh = split_shift(rear_um, 0);
     uint32_t n = (uint32_t)1u << sh;
     for (uint32_t i = 0; i < n; i++) {
-        ack_substep(piece(rear_um, sh, i), kappa_q16);
+        ack_substep(piece(rear_um, sh, i), kappa_q16, left);
     }
     s_odom.speed_mm_s = rear_mm_s;
-    /* yaw rate = v * tan / L; v limited to +-2^20 mm/s so 64 bits suffice. */
-    int32_t v = rear_mm_s;
-    if (v > (1L << 20)) {
-        v = 1L << 20;
-    } else if (v < -(1L << 20)) {
-        v = -(1L << 20);
-    }
-    int64_t vt_q15 = ((int64_t)v * tan_q24 + 256) >> 9;
-    int64_t w = vt_q15 * (int64_t)s_odom.k_rate_ack;
-    s_odom.yaw_rate_cdeg_s = (int32_t)((w + (1LL << 30)) >> 31);
+    int32_t w = mul_q16(clamp_i32(rear_mm_s, 65535L), krate_q16);
+    s_odom.yaw_rate_cdeg_s = left ? w : -w;
 }
 
 void odom_get(odom_pose_t *out)

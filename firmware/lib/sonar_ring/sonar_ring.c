@@ -106,11 +106,14 @@ static ring_t s;
 
 uint16_t sonar_ring_mm_from_echo_us(uint32_t echo_us)
 {
-    /* 343 m/s, round trip: mm = us * 343 / 2000. Saturate before the multiply. */
+    /* 343 m/s, round trip: mm = us * 343 / 2000 = us * 0.1715. Done as a
+     * multiply and shift, 0.1715 ~ 11239 / 65536 (0.17149, -0.003 %), which
+     * avoids a 32-bit division (~700 cycles on the AVR). The product fits
+     * 32 bits up to 382000 us; longer pulses saturate. */
     if (echo_us > 382000UL) {
         return 65535u;
     }
-    uint32_t mm = (echo_us * 343UL + 1000UL) / 2000UL;
+    uint32_t mm = (echo_us * 11239UL + 32768UL) >> 16;
     return mm > 65535UL ? 65535u : (uint16_t)mm;
 }
 

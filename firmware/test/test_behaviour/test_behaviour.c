@@ -57,6 +57,7 @@ void setUp(void)
     in.now_ms = 1000u;
     frame_free();
     link_fresh();
+    in.mode_flags = BHV_MODE_AVOID; /* link's default */
     reinit();
 }
 
@@ -75,7 +76,7 @@ void test_behaviour_step_highest_layer_wins_when_several_layers_command(void)
     in.manual_rx_ms = in.now_ms;
     in.manual_steer_cdeg = 1111;
     in.manual_speed_mm_s = 222;
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK;
+    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
     host_cmd(-500, 333);
     in.goal_active = true;
     in.goal_x_mm = 5000;
@@ -107,7 +108,7 @@ void test_behaviour_step_highest_layer_wins_when_several_layers_command(void)
     TEST_ASSERT_EQUAL_UINT8(BHV_REASON_WALL_LEFT, out.reason);
     TEST_ASSERT_TRUE_MESSAGE(out.steer_cdeg < 0, "turns right, away from the left wall");
 
-    in.mode_flags = BHV_MODE_GOAL_SEEK;
+    in.mode_flags = BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
     reinit();
     tick();
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "host beats goal");
@@ -341,11 +342,24 @@ void test_behaviour_avoid_ignores_obstacle_when_not_moving_forward(void)
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
 }
 
+void test_behaviour_avoid_abstains_when_mode_flag_clear(void)
+{
+    in.mode_flags = 0u;
+    in.speed_mm_s = 300;
+    set_range(0, 150u);
+    host_cmd(0, 300);
+    tick();
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "avoid disabled by the host");
+    in.mode_flags = BHV_MODE_AVOID;
+    tick();
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_AVOID_OBSTACLE, out.layer);
+}
+
 /* ---- move to goal -------------------------------------------------------- */
 
 void test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance(void)
 {
-    in.mode_flags = BHV_MODE_GOAL_SEEK;
+    in.mode_flags = BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
     in.goal_active = true;
     in.goal_x_mm = 3000;
     in.goal_y_mm = 0;
@@ -380,7 +394,7 @@ void test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance(void
 
 void test_behaviour_wall_steers_away_from_nearer_side(void)
 {
-    in.mode_flags = BHV_MODE_FOLLOW_WALL;
+    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
     set_range(10, 400u); /* wall front-right */
     set_range(11, 600u);
     tick();
@@ -434,7 +448,7 @@ static uint16_t canyon_run(uint16_t canyon_ms, int32_t *heading)
     behaviour_params_t p = BEHAVIOUR_PARAMS_DEFAULT;
     p.wall_canyon_ms = canyon_ms;
     behaviour_init(&p, &SONAR_RING_12_SDLG);
-    in.mode_flags = BHV_MODE_FOLLOW_WALL;
+    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
     int32_t h = 0;
     int8_t last_sign = 0;
     uint16_t changes = 0u;
@@ -450,7 +464,8 @@ static uint16_t canyon_run(uint16_t canyon_ms, int32_t *heading)
         link_fresh();
         tick();
         TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_FOLLOW_WALL, out.layer, "wall layer in charge");
-        h = behaviour_wrap_cdeg(h + ((int32_t)out.steer_cdeg * 3L * TICK_MS) / 1000L);
+        /* (int32_t)TICK_MS: with a 32-bit long, long * unsigned int is unsigned long. */
+        h = behaviour_wrap_cdeg(h + ((int32_t)out.steer_cdeg * 3L * (int32_t)TICK_MS) / 1000L);
         int8_t sign = out.steer_cdeg > 0 ? 1 : (out.steer_cdeg < 0 ? -1 : 0);
         if (sign != 0) {
             if (last_sign != 0 && sign != last_sign) {
@@ -514,6 +529,7 @@ int main(void)
     RUN_TEST(test_behaviour_avoid_runs_stop_backoff_wait_release_with_timings);
     RUN_TEST(test_behaviour_avoid_repeats_cycle_when_obstacle_stays);
     RUN_TEST(test_behaviour_avoid_ignores_obstacle_when_not_moving_forward);
+    RUN_TEST(test_behaviour_avoid_abstains_when_mode_flag_clear);
     RUN_TEST(test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance);
     RUN_TEST(test_behaviour_wall_steers_away_from_nearer_side);
     RUN_TEST(test_behaviour_canyon_timers_bound_left_right_switching_in_dead_end);

@@ -37,7 +37,10 @@ if target == "avr":
         CFLAGS=COMMON_CFLAGS,
         CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os"],
         CPPDEFINES=[("F_CPU", "$BOARD_F_CPU")],
-        LINKFLAGS=mcu_flags + ["-Os", "-Wl,--gc-sections"],
+        LINKFLAGS=mcu_flags + [
+            "-Os", "-Wl,--gc-sections",
+            "-Wl,-Map," + join("$BUILD_DIR", "${PROGNAME}.map"),  # tools/fw_size.py reads it
+        ],
         BUILDERS=dict(
             ElfToHex=Builder(
                 action=env.VerboseAction(

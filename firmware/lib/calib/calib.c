@@ -1,0 +1,414 @@
+/*
+ * Actuator calibration tables: lookup, validation, EEPROM storage.
+ * See calib.h for the table shape and the storage layout.
+ */
+#include "calib.h"
+
+#include <stddef.h>
+
+#include "crc16.h"
+#include "hal.h"
+#include "units.h"
+
+/* ---- defaults from the reference car (ref 003, section 6.5) --------------
+ *
+ * Steering. Least-squares fits over table 6.1 (PWM given in hex there):
+ *   above the centre: |phi| deg =  0.6502 * PWM - 86.477  (rows 0x95..0xA5)
+ *   below the centre: |phi| deg = -0.6717 * PWM + 89.698  (rows 0x60..0x75)
+ * The signs were lost in the text conversion; reconstructed from the table
+ * rows, e.g. PWM 0x95 = 149 -> 10.4 deg and 0x60 = 96 -> 24.6 deg. The
+ * thesis labels the first fit "turning left" and the second "turning
+ * right", so PWM above the centre is a left turn = positive steering under
+ * REP-103; the pos side therefore lies above neutral.
+ * Neutral: the fits cross zero at 133.0 and 133.5; the thesis used 132 for
+ * straight driving; we take 133 (both fits within 0.4 deg there).
+ * Saturation at 24.6 deg, the largest angle measured.
+ *   left:  (133, 0) (170, 24.06 deg) (171, 24.6 deg)
+ *   right: (133, 0) (130, -2.38) (97, -24.54) (96, -24.6): the fit from 130
+ *          outwards; 130..133 ramps to the common neutral.
+ *
+ * Speed. Table 6.2 and its fit v cm/s = 2.038 * PWM - 22.636 over
+ * 43.5..200 cm/s (PWM 0x20..0x70). Below v = 43.5 cm/s (PWM 32.45) the car
+ * does not move: dead band up to PWM 32, first point PWM 33 = 446 mm/s, last
+ * PWM 109 = 1995 mm/s (the fit's 200 cm/s is at 109.2). Neutral 0. No
+ * reverse data: the negative side is empty (sign-magnitude). Differential
+ * robots replace both speed tables with their own measurements. */
+static const UNITS_ROM calib_table_t CALIB_DEFAULTS[CALIB_TABLE_COUNT] = {
+    /* CALIB_STEER */
+    {133u,
+     {3u, {{133u, 0}, {170u, 2406}, {171u, 2460}}},
+     {4u, {{133u, 0}, {130u, -238}, {97u, -2454}, {96u, -2460}}}},
+    /* CALIB_SPEED_LEFT */
+    {0u, {2u, {{33u, 446}, {109u, 1995}}}, {0u, {{0u, 0}}}},
+    /* CALIB_SPEED_RIGHT */
+    {0u, {2u, {{33u, 446}, {109u, 1995}}}, {0u, {{0u, 0}}}},
+};
+
+static calib_table_t s_tables[CALIB_TABLE_COUNT];
+static uint8_t s_health;
+static calib_status_t s_last_load;
+
+/* ---- lookup --------------------------------------------------------------- */
+
+static uint16_t dist_u16(uint16_t a, uint16_t b) { return a > b ? (uint16_t)(a - b) : (uint16_t)(b - a); }
+static int32_t abs32(int32_t v) { return v < 0 ? -v : v; }
+
+/* Rounded num / den, den > 0, half away from zero. */
+static int32_t div_round(int32_t num, int32_t den)
+{
+    return num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den);
+}
+
+/* True if the pos side lies above neutral (decided by its last point). */
+static bool pos_above(const calib_table_t *t)
+{
+    return t->pos.n > 0u && t->pos.pt[t->pos.n - 1u].pwm > t->neutral_pwm;
+}
+
+static int32_t side_value(const calib_side_t *s, uint16_t neutral, uint16_t d)
+{
+    if (s->n == 0u || d < dist_u16(s->pt[0].pwm, neutral)) {
+        return 0; /* dead band (or no such side) */
+    }
+    for (uint8_t i = 0; i + 1u < s->n; i++) {
+        uint16_t d0 = dist_u16(s->pt[i].pwm, neutral);
+        uint16_t d1 = dist_u16(s->pt[i + 1u].pwm, neutral);
+        if (d < d1) {
+            int32_t v0 = s->pt[i].value;
+            int32_t dv = (int32_t)s->pt[i + 1u].value - v0;
+            return v0 + div_round(dv * (int32_t)(d - d0), (int32_t)(d1 - d0));
+        }
+    }
+    return s->pt[s->n - 1u].value; /* saturation */
+}
+
+int32_t calib_table_value(const calib_table_t *t, uint16_t pwm)
+{
+    if (t == NULL || pwm == t->neutral_pwm) {
+        return 0;
+    }
+    bool above = pwm > t->neutral_pwm;
+    uint16_t d = dist_u16(pwm, t->neutral_pwm);
+    return side_value(above == pos_above(t) ? &t->pos : &t->neg, t->neutral_pwm, d);
+}
+
+uint16_t calib_table_pwm(const calib_table_t *t, int32_t value)
+{
+    if (t == NULL) {
+        return 0u;
+    }
+    if (value == 0) {
+        return t->neutral_pwm;
+    }
+    const calib_side_t *s = value > 0 ? &t->pos : &t->neg;
+    int32_t mag = abs32(value);
+    if (s->n == 0u) {
+        s = &t->pos; /* sign-magnitude: the output stage sets the direction */
+        if (s->n == 0u) {
+            return t->neutral_pwm;
+        }
+    }
+    if (mag < abs32(s->pt[0].value)) {
+        return t->neutral_pwm; /* slower than the actuator can go: stop */
+    }
+    for (uint8_t i = 0; i + 1u < s->n; i++) {
+        int32_t m0 = abs32(s->pt[i].value);
+        int32_t m1 = abs32(s->pt[i + 1u].value);
+        if (mag < m1) {
+            int32_t p0 = s->pt[i].pwm;
+            int32_t dp = (int32_t)s->pt[i + 1u].pwm - p0;
+            return (uint16_t)(p0 + div_round(dp * (mag - m0), m1 - m0));
+        }
+    }
+    return s->pt[s->n - 1u].pwm; /* saturation */
+}
+
+int32_t calib_value_from_pwm(uint8_t id, uint16_t pwm)
+{
+    return id < (uint8_t)CALIB_TABLE_COUNT ? calib_table_value(&s_tables[id], pwm) : 0;
+}
+
+uint16_t calib_pwm_from_value(uint8_t id, int32_t value)
+{
+    return id < (uint8_t)CALIB_TABLE_COUNT ? calib_table_pwm(&s_tables[id], value) : 0u;
+}
+
+/* ---- validation ----------------------------------------------------------- */
+
+/* sign: +1 for the pos side, -1 for neg; above: side lies above neutral. */
+static calib_status_t check_side(const calib_side_t *s, uint16_t neutral, int8_t sign, bool above,
+                                 int32_t limit)
+{
+    if (s->n > CALIB_MAX_POINTS) {
+        return CALIB_E_TOO_MANY_POINTS;
+    }
+    if (s->n == 1u) {
+        return CALIB_E_TOO_FEW_POINTS;
+    }
+    int32_t prev_d = -1;
+    int32_t prev_m = -1;
+    for (uint8_t i = 0; i < s->n; i++) {
+        const calib_point_t *p = &s->pt[i];
+        if (p->pwm > CALIB_PWM_MAX) {
+            return CALIB_E_PWM_RANGE;
+        }
+        if (abs32(p->value) > limit) {
+            return CALIB_E_VALUE_RANGE;
+        }
+        if ((sign > 0 && p->value < 0) || (sign < 0 && p->value > 0)) {
+            return CALIB_E_WRONG_SIDE;
+        }
+        if (p->pwm == neutral) {
+            if (i != 0u || p->value != 0) {
+                return CALIB_E_WRONG_SIDE; /* only a zero first point may sit at neutral */
+            }
+        } else if ((p->pwm > neutral) != above) {
+            return CALIB_E_WRONG_SIDE;
+        }
+        int32_t d = dist_u16(p->pwm, neutral);
+        int32_t m = abs32(p->value);
+        if (d <= prev_d || m <= prev_m) {
+            return CALIB_E_NON_MONOTONE;
+        }
+        prev_d = d;
+        prev_m = m;
+    }
+    return CALIB_OK;
+}
+
+calib_status_t calib_validate(uint8_t id, const calib_table_t *t)
+{
+    if (id >= (uint8_t)CALIB_TABLE_COUNT || t == NULL) {
+        return CALIB_E_BAD_ID;
+    }
+    bool steer = id == (uint8_t)CALIB_STEER;
+    int32_t limit = steer ? CALIB_ANGLE_LIMIT_CDEG : CALIB_SPEED_LIMIT_MM_S;
+    if (t->neutral_pwm > CALIB_PWM_MAX) {
+        return CALIB_E_PWM_RANGE;
+    }
+    if (t->pos.n > CALIB_MAX_POINTS || t->neg.n > CALIB_MAX_POINTS) {
+        return CALIB_E_TOO_MANY_POINTS;
+    }
+    /* Both sides are needed for steering; a speed table may be one-sided. */
+    if (t->pos.n < 2u || (steer && t->neg.n < 2u)) {
+        return CALIB_E_TOO_FEW_POINTS;
+    }
+    if (t->pos.pt[t->pos.n - 1u].pwm == t->neutral_pwm) {
+        return CALIB_E_WRONG_SIDE;
+    }
+    bool above = pos_above(t);
+    calib_status_t r = check_side(&t->pos, t->neutral_pwm, 1, above, limit);
+    if (r == CALIB_OK) {
+        r = check_side(&t->neg, t->neutral_pwm, -1, !above, limit);
+    }
+    return r;
+}
+
+/* ---- active tables -------------------------------------------------------- */
+
+static void load_defaults(void)
+{
+    for (uint8_t i = 0; i < (uint8_t)CALIB_TABLE_COUNT; i++) {
+        s_tables[i] = CALIB_DEFAULTS[i]; /* flash -> RAM copy on AVR */
+    }
+    s_health |= CALIB_DEFAULTED;
+}
+
+void calib_init(void)
+{
+    s_health = 0u;
+    s_last_load = CALIB_OK;
+    load_defaults();
+}
+
+uint8_t calib_health(void) { return s_health; }
+calib_status_t calib_last_load_status(void) { return s_last_load; }
+
+calib_status_t calib_set_table(uint8_t id, const calib_table_t *t)
+{
+    calib_status_t r = calib_validate(id, t);
+    if (r == CALIB_OK) {
+        s_tables[id] = *t;
+    }
+    return r;
+}
+
+bool calib_get_table(uint8_t id, calib_table_t *out)
+{
+    if (id >= (uint8_t)CALIB_TABLE_COUNT || out == NULL) {
+        return false;
+    }
+    *out = s_tables[id];
+    return true;
+}
+
+bool calib_get_default(uint8_t id, calib_table_t *out)
+{
+    if (id >= (uint8_t)CALIB_TABLE_COUNT || out == NULL) {
+        return false;
+    }
+    *out = CALIB_DEFAULTS[id];
+    return true;
+}
+
+/* ---- storage -------------------------------------------------------------- */
+
+#define HDR_BYTES 6u
+#define PAYLOAD_BYTES (3u * CALIB_TABLE_BYTES)
+
+static void put_u16(uint8_t *b, uint16_t v)
+{
+    b[0] = (uint8_t)(v & 0xFFu);
+    b[1] = (uint8_t)(v >> 8);
+}
+
+static uint16_t get_u16(const uint8_t *b) { return (uint16_t)(b[0] | ((uint16_t)b[1] << 8)); }
+
+static void encode_table(const calib_table_t *t, uint8_t *b)
+{
+    put_u16(b, t->neutral_pwm);
+    uint8_t k = 2u;
+    for (uint8_t side = 0; side < 2u; side++) {
+        const calib_side_t *s = side == 0u ? &t->pos : &t->neg;
+        b[k++] = s->n;
+        for (uint8_t i = 0; i < CALIB_MAX_POINTS; i++) {
+            bool used = i < s->n;
+            put_u16(&b[k], used ? s->pt[i].pwm : 0u);
+            put_u16(&b[k + 2u], used ? (uint16_t)s->pt[i].value : 0u);
+            k = (uint8_t)(k + 4u);
+        }
+    }
+}
+
+static void decode_table(const uint8_t *b, calib_table_t *t)
+{
+    t->neutral_pwm = get_u16(b);
+    uint8_t k = 2u;
+    for (uint8_t side = 0; side < 2u; side++) {
+        calib_side_t *s = side == 0u ? &t->pos : &t->neg;
+        s->n = b[k++];
+        for (uint8_t i = 0; i < CALIB_MAX_POINTS; i++) {
+            s->pt[i].pwm = get_u16(&b[k]);
+            s->pt[i].value = (int16_t)get_u16(&b[k + 2u]);
+            k = (uint8_t)(k + 4u);
+        }
+    }
+}
+
+static void encode_header(uint8_t *h)
+{
+    put_u16(h, CALIB_MAGIC);
+    h[2] = CALIB_LAYOUT_VERSION;
+    h[3] = (uint8_t)CALIB_TABLE_COUNT;
+    put_u16(&h[4], PAYLOAD_BYTES);
+}
+
+static bool fits_eeprom(void)
+{
+    return (uint32_t)CALIB_EEPROM_ADDR + CALIB_RECORD_BYTES <= (uint32_t)hal_eeprom_size();
+}
+
+/* Check the stored record; when apply is true also copy the tables into the
+ * active set (only called after a full check passed). */
+static calib_status_t read_record(bool apply)
+{
+    uint8_t h[HDR_BYTES];
+    uint8_t b[CALIB_TABLE_BYTES];
+    calib_table_t t;
+
+    if (!fits_eeprom()) {
+        return CALIB_E_NO_SPACE;
+    }
+    hal_eeprom_read(CALIB_EEPROM_ADDR, h, HDR_BYTES);
+    bool erased = true;
+    for (uint8_t i = 0; i < HDR_BYTES; i++) {
+        erased = erased && h[i] == 0xFFu;
+    }
+    if (erased) {
+        return CALIB_E_ERASED;
+    }
+    if (get_u16(h) != CALIB_MAGIC) {
+        return CALIB_E_BAD_MAGIC;
+    }
+    if (h[2] != CALIB_LAYOUT_VERSION) {
+        return CALIB_E_BAD_VERSION;
+    }
+    if (h[3] != (uint8_t)CALIB_TABLE_COUNT || get_u16(&h[4]) != PAYLOAD_BYTES) {
+        return CALIB_E_BAD_LENGTH;
+    }
+    uint16_t crc = crc16_ccitt_false(h, HDR_BYTES);
+    calib_status_t table_status = CALIB_OK;
+    for (uint8_t id = 0; id < (uint8_t)CALIB_TABLE_COUNT; id++) {
+        hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), b,
+                        CALIB_TABLE_BYTES);
+        crc = crc16_ccitt_false_update(crc, b, CALIB_TABLE_BYTES);
+        decode_table(b, &t);
+        if (calib_validate(id, &t) != CALIB_OK) {
+            table_status = CALIB_E_BAD_TABLE;
+        } else if (apply) {
+            s_tables[id] = t;
+        }
+    }
+    uint8_t c[2];
+    hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + PAYLOAD_BYTES), c, 2u);
+    if (get_u16(c) != crc) {
+        return CALIB_E_BAD_CRC;
+    }
+    return table_status;
+}
+
+calib_status_t calib_load(void)
+{
+    calib_status_t r = read_record(false);
+    if (r == CALIB_OK) {
+        (void)read_record(true);
+        s_health = (uint8_t)(s_health & ~CALIB_DEFAULTED);
+    } else {
+        load_defaults();
+    }
+    s_last_load = r;
+    return r;
+}
+
+calib_status_t calib_save(void)
+{
+    uint8_t h[HDR_BYTES];
+    uint8_t b[CALIB_TABLE_BYTES];
+    uint8_t c[2];
+
+    if (!fits_eeprom()) {
+        s_health |= CALIB_SAVE_FAILED;
+        return CALIB_E_NO_SPACE;
+    }
+    encode_header(h);
+    uint16_t crc = crc16_ccitt_false(h, HDR_BYTES);
+    hal_eeprom_write(CALIB_EEPROM_ADDR, h, HDR_BYTES);
+    for (uint8_t id = 0; id < (uint8_t)CALIB_TABLE_COUNT; id++) {
+        encode_table(&s_tables[id], b);
+        crc = crc16_ccitt_false_update(crc, b, CALIB_TABLE_BYTES);
+        hal_eeprom_write((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), b,
+                         CALIB_TABLE_BYTES);
+    }
+    put_u16(c, crc);
+    hal_eeprom_write((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + PAYLOAD_BYTES), c, 2u);
+
+    /* Read back: the record must check out and hold what is active. */
+    calib_status_t r = read_record(false);
+    for (uint8_t id = 0; r == CALIB_OK && id < (uint8_t)CALIB_TABLE_COUNT; id++) {
+        uint8_t e[CALIB_TABLE_BYTES];
+        encode_table(&s_tables[id], b);
+        hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), e,
+                        CALIB_TABLE_BYTES);
+        for (uint8_t i = 0; i < CALIB_TABLE_BYTES; i++) {
+            if (e[i] != b[i]) {
+                r = CALIB_E_VERIFY;
+            }
+        }
+    }
+    if (r != CALIB_OK) {
+        s_health |= CALIB_SAVE_FAILED;
+        return CALIB_E_VERIFY;
+    }
+    s_health = (uint8_t)(s_health & ~(CALIB_DEFAULTED | CALIB_SAVE_FAILED));
+    return CALIB_OK;
+}
