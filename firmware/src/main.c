@@ -1,30 +1,355 @@
-/* AgNav robot controller: wiring and the scheduler table only. */
+/*
+ * AgNav robot controller: wiring and the static scheduler table only.
+ *
+ * Every module lives in firmware/lib/<module>; this file connects them:
+ *   link (MAVLink in) -> behaviour inputs; encoders -> odometry; sonar ring ->
+ *   behaviour; behaviour out -> drive (calibration tables -> PWM); telemetry out.
+ * EEPROM map: 0x0100 calibration record (calib, 212 B), 0x0200 parameters.
+ */
+#include <string.h>
+
+#include "behaviour.h"
+#include "calib.h"
+#include "drive.h"
+#include "encoder.h"
 #include "hal.h"
+#include "link.h"
+#include "link_calib.h"
+#include "odometry.h"
+#include "params.h"
+#include "sched.h"
+#include "sonar_ring.h"
 
-#include <agnav_mavlink.h>
+#define EEPROM_PARAMS_ADDR 0x0200u
+#define WATCHDOG_TIMEOUT_MS 250u
+#define SONAR_STALE_MS 500u /* no new ring for this long -> sonar fault */
 
-static mavlink_system_t s_system = {1, MAV_COMP_ID_AUTOPILOT1};
+/* ---- parameters: module defaults are set in defaults(), stored ones loaded over them --- */
+static uint8_t p_sysid;
+static uint8_t p_drive_kind;    /* drive_kind_t: 0 Ackermann (ref 003 car), 1 differential */
+static uint8_t p_enc_count;     /* wheels with an encoder, 1..4 */
+static uint8_t p_enc_mode;      /* encoder_mode_t: 0 quadrature x4, 1 Hall */
+static int32_t p_enc_nm_per_count;
+static uint16_t p_track_mm;
+static uint16_t p_wheelbase_mm;
+static uint8_t p_sonar_count;   /* 0 none, 1 SRF05 front, 6 HC-SR04, 12 ring */
+static uint8_t p_mode_flags;    /* BHV_MODE_* enabled at boot */
+static behaviour_params_t p_bhv;
 
-static void send_heartbeat(void)
+/* Keys are append-only (STYLE: never reorder or reuse a row). Units are in the names. */
+static const PARAMS_ROM param_def_t PARAMS[] = {
+    {"SYSID_THISMAV", PARAM_U8, &p_sysid, 1, 250},
+    {"DRIVE_KIND", PARAM_U8, &p_drive_kind, 0, 1},
+    {"ENC_COUNT", PARAM_U8, &p_enc_count, 1, 4},
+    {"ENC_MODE", PARAM_U8, &p_enc_mode, 0, 1},
+    {"ENC_NM_PER_CNT", PARAM_I32, &p_enc_nm_per_count, 1000, 16000000},
+    {"TRACK_MM", PARAM_U16, &p_track_mm, 50, 2000},
+    {"WHEELBASE_MM", PARAM_U16, &p_wheelbase_mm, 50, 2000},
+    {"SONAR_COUNT", PARAM_U8, &p_sonar_count, 0, 12},
+    {"BHV_MODES", PARAM_U8, &p_mode_flags, 0, 7},
+    {"LINK_TIMEOUT_MS", PARAM_U16, &p_bhv.link_timeout_ms, 100, 5000},
+    {"MAX_SPEED_MM_S", PARAM_I16, &p_bhv.max_speed_mm_s, 0, 3000},
+    {"MAX_STEER_CDEG", PARAM_I16, &p_bhv.max_steer_cdeg, 0, 4500},
+    {"AVOID_STOP_MM", PARAM_U16, &p_bhv.avoid_stop_mm, 50, 3000},
+    {"AVOID_BACKOFF_MM", PARAM_U16, &p_bhv.avoid_backoff_mm, 0, 500},
+    {"AVOID_WAIT_MS", PARAM_U16, &p_bhv.avoid_wait_ms, 0, 10000},
+    {"WALL_R0_MM", PARAM_U16, &p_bhv.wall_r0_mm, 0, 1000},
+    {"WALL_SPEED_MM_S", PARAM_I16, &p_bhv.wall_speed_mm_s, 0, 2000},
+    {"WALL_CANYON_MS", PARAM_U16, &p_bhv.wall_canyon_ms, 0, 10000},
+    {"GOAL_SPEED_MM_S", PARAM_I16, &p_bhv.goal_speed_mm_s, 0, 2000},
+    {"GOAL_TOL_MM", PARAM_U16, &p_bhv.goal_tol_mm, 10, 2000},
+};
+#define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
+
+static void defaults(void)
 {
-    mavlink_message_t msg;
-    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
-    mavlink_msg_heartbeat_pack(s_system.sysid, s_system.compid, &msg, MAV_TYPE_GROUND_ROVER,
-                               MAV_AUTOPILOT_GENERIC, 0, 0, MAV_STATE_ACTIVE);
-    uint16_t len = mavlink_msg_to_send_buffer(buf, &msg);
-    hal_uart_write(HAL_UART_LINK, buf, len);
+    p_sysid = 1u;
+    p_drive_kind = DRIVE_ACKERMANN;
+    p_enc_count = 1u;
+    p_enc_mode = ENCODER_MODE_HALL;
+    p_enc_nm_per_count = 13550000L; /* ref 003 car: 16 magnets, 13.55 mm per pulse */
+    p_track_mm = 191u;
+    p_wheelbase_mm = 174u;          /* ref 003 car */
+    p_sonar_count = 12u;
+    p_mode_flags = BHV_MODE_AVOID;
+    p_bhv = BEHAVIOUR_PARAMS_DEFAULT;
 }
 
-int main(void)
+/* ---- state ---------------------------------------------------------------------------------- */
+static behaviour_in_t s_in;
+static behaviour_out_t s_out;
+static uint32_t s_frame_ms;
+static bool s_watchdog_boot;
+static const sonar_ring_cfg_t *s_ring;
+
+static void send(mavlink_message_t *msg) { (void)link_send(msg); }
+
+/* ---- tasks ---------------------------------------------------------------------------------- */
+static void handle_calib_requests(void)
 {
-    hal_init();
-    hal_uart_init(HAL_UART_LINK, 57600u);
-    uint32_t next_ms = 0;
-    for (;;) {
-        uint32_t now = hal_time_ms();
-        if ((int32_t)(now - next_ms) >= 0) {
-            next_ms += 1000u;
-            send_heartbeat();
+    link_state_t *ls = link_state();
+    mavlink_message_t msg;
+    if (ls->calib_table_pending) {
+        ls->calib_table_pending = false;
+        calib_table_t t;
+        uint8_t result = link_calib_from_msg(&ls->calib_table, &t);
+        if (result == 0u) {
+            result = link_calib_result(calib_set_table(ls->calib_table.table_id, &t));
         }
+        mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, ls->calib_table.table_id, result,
+                                         255u, s_out.failsafe_flags);
+        send(&msg);
+    }
+    if (ls->calib_request_pending) {
+        ls->calib_request_pending = false;
+        uint8_t id = ls->calib_request.table_id;
+        uint8_t result = AGNAV_CALIB_ACCEPTED;
+        if (ls->calib_request.action == AGNAV_CALIB_ACTION_SAVE) {
+            result = link_calib_result(calib_save());
+        } else if (ls->calib_request.action == AGNAV_CALIB_ACTION_DEFAULTS) {
+            calib_table_t t;
+            result = calib_get_default(id, &t) ? link_calib_result(calib_set_table(id, &t)) : AGNAV_CALIB_BAD_TABLE;
+        } else {
+            calib_table_t t;
+            if (calib_get_table(id, &t)) {
+                mavlink_agnav_calib_table_t m;
+                link_calib_to_msg(id, &t, &m);
+                m.target_system = 0u;
+                m.target_component = 0u;
+                mavlink_msg_agnav_calib_table_encode(link_sysid(), link_compid(), &msg, &m);
+                send(&msg);
+                return;
+            }
+            result = AGNAV_CALIB_BAD_TABLE;
+        }
+        mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, id, result, 255u, s_out.failsafe_flags);
+        send(&msg);
     }
 }
+
+static void task_link(void)
+{
+    link_poll(hal_time_ms());
+    link_state_t *ls = link_state();
+    if (ls->arm_request) {
+        ls->arm_request = false;
+        behaviour_arm();
+    }
+    handle_calib_requests();
+}
+
+static void task_sonar(void)
+{
+    if (s_ring == 0) {
+        return;
+    }
+    sonar_ring_step(hal_time_us());
+    /* Straight into the behaviour inputs: tasks run one at a time, so the control
+     * task never sees a half-written frame. */
+    if (sonar_ring_snapshot(&s_in.sonar)) {
+        s_frame_ms = hal_time_ms();
+    }
+}
+
+static void update_odometry(void)
+{
+    encoder_update(hal_time_us());
+    encoder_motion_t m[ENCODER_MAX];
+    for (uint8_t i = 0; i < p_enc_count; i++) {
+        encoder_motion(i, &m[i]);
+    }
+    if (p_drive_kind == DRIVE_DIFFERENTIAL && p_enc_count >= 2u) {
+        int32_t l_um = m[0].delta_um, r_um = m[1].delta_um;
+        int32_t l_v = m[0].speed_mm_s, r_v = m[1].speed_mm_s;
+        if (p_enc_count >= 4u) { /* skid steer: wheels 2 (left) and 3 (right) averaged in */
+            l_um = (l_um + m[2].delta_um) / 2;
+            r_um = (r_um + m[3].delta_um) / 2;
+            l_v = (l_v + m[2].speed_mm_s) / 2;
+            r_v = (r_v + m[3].speed_mm_s) / 2;
+        }
+        odom_update_diff(l_um, r_um, l_v, r_v);
+    } else {
+        int32_t rear_um = m[0].delta_um, rear_v = m[0].speed_mm_s;
+        if (p_enc_count >= 2u) { /* two rear wheels: their mean is the axle centre */
+            rear_um = (rear_um + m[1].delta_um) / 2;
+            rear_v = (rear_v + m[1].speed_mm_s) / 2;
+        }
+        odom_update_ackermann(rear_um, s_out.steer_cdeg, rear_v);
+    }
+}
+
+static void task_control(void)
+{
+    uint32_t now_ms = hal_time_ms();
+    hal_watchdog_kick();
+    update_odometry();
+    odom_pose_t pose;
+    odom_get(&pose);
+
+    const link_state_t *ls = link_state();
+    behaviour_in_t *in = &s_in;
+    in->now_ms = now_ms;
+    in->host_steer_cdeg = ls->setpoint.steer_cdeg;
+    in->host_speed_mm_s = ls->setpoint.speed_mm_s;
+    in->host_rx_ms = ls->setpoint.rx_ms;
+    in->host_valid = ls->setpoint.valid;
+    in->heartbeat_rx_ms = ls->host_heartbeat_ms;
+    in->heartbeat_valid = ls->host_seen;
+    in->manual_steer_cdeg = ls->manual.steer_cdeg;
+    in->manual_speed_mm_s = ls->manual.speed_mm_s;
+    in->manual_rx_ms = ls->manual.rx_ms;
+    in->manual_valid = ls->manual.valid;
+    in->estop = ls->estop;
+    in->encoder_fault = encoder_faults() != 0u;
+    in->sonar_fault = s_ring != 0 && (uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS;
+    in->reset_was_watchdog = s_watchdog_boot;
+    in->calib_defaulted = (calib_health() & CALIB_DEFAULTED) != 0u;
+    in->x_mm = pose.x_mm;
+    in->y_mm = pose.y_mm;
+    in->heading_cdeg = (int16_t)pose.heading_cdeg;
+    in->speed_mm_s = (int16_t)pose.speed_mm_s;
+    in->goal_x_mm = ls->goal.x_mm;
+    in->goal_y_mm = ls->goal.y_mm;
+    in->goal_active = ls->goal.active;
+    in->mode_flags = ls->behaviour_enable;
+
+    behaviour_step(in, &s_out);
+
+    bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
+    if (raw) {
+        drive_apply_raw(ls->setpoint.steer_pwm, ls->setpoint.speed_pwm, ls->setpoint.speed_mm_s < 0 ? -1 : 1);
+    } else if (s_out.speed_mm_s == 0 && s_out.layer == BHV_LAYER_FAILSAFE) {
+        drive_stop();
+    } else {
+        drive_apply(s_out.steer_cdeg, s_out.speed_mm_s);
+    }
+    for (uint8_t i = 0; i < p_enc_count; i++) {
+        encoder_set_direction_hint(i, drive_output()->direction);
+    }
+
+    mavlink_message_t msg;
+    mavlink_msg_agnav_behaviour_status_pack(link_sysid(), link_compid(), &msg, now_ms, s_out.layer, s_out.reason,
+                                            s_out.failsafe_flags, s_out.steer_cdeg, s_out.speed_mm_s);
+    send(&msg);
+}
+
+static void task_telemetry_10hz(void)
+{
+    uint32_t now_ms = hal_time_ms();
+    mavlink_message_t msg;
+    odom_pose_t pose;
+    odom_get(&pose);
+    mavlink_msg_agnav_odometry_pack(link_sysid(), link_compid(), &msg, now_ms, pose.x_mm, pose.y_mm,
+                                    (int16_t)pose.heading_cdeg, (int16_t)pose.speed_mm_s,
+                                    (int16_t)pose.yaw_rate_cdeg_s);
+    send(&msg);
+
+    int32_t count[4] = {0, 0, 0, 0};
+    int16_t speed[4] = {0, 0, 0, 0};
+    uint16_t errors[4] = {0, 0, 0, 0};
+    for (uint8_t i = 0; i < p_enc_count; i++) {
+        encoder_snapshot_t snap;
+        encoder_motion_t m;
+        encoder_snapshot(i, &snap);
+        encoder_motion(i, &m);
+        count[i] = snap.count;
+        speed[i] = (int16_t)m.speed_mm_s;
+        errors[i] = (uint16_t)snap.errors;
+    }
+    mavlink_msg_agnav_encoder_status_pack(link_sysid(), link_compid(), &msg, now_ms, count, speed, errors, p_enc_count);
+    send(&msg);
+
+    if (s_ring != 0 && s_in.sonar.seq != 0u) {
+        mavlink_msg_agnav_sonar_ring_pack(link_sysid(), link_compid(), &msg, s_frame_ms, s_in.sonar.ranges_mm,
+                                          s_in.sonar.status, s_in.sonar.count, (uint16_t)s_in.sonar.seq);
+        send(&msg);
+    }
+}
+
+static void task_telemetry_1hz(void)
+{
+    mavlink_message_t msg;
+    uint8_t state = (s_out.failsafe_flags & BHV_FS_STOP_MASK) != 0u ? MAV_STATE_CRITICAL : MAV_STATE_ACTIVE;
+    mavlink_msg_heartbeat_pack(link_sysid(), link_compid(), &msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC,
+                               MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, s_out.layer, state);
+    send(&msg);
+}
+
+/* The static scheduler table: {task, period ms, budget us, name}. */
+static const sched_task_t TASKS[] = {
+    {task_link, 2u, 600u, "link"},
+    {task_sonar, 1u, 300u, "sonar"},
+    {task_control, 20u, 1000u, "control"},
+    {task_telemetry_10hz, 100u, 800u, "telem10"},
+    {task_telemetry_1hz, 1000u, 300u, "telem1"},
+};
+#define TASK_COUNT (sizeof TASKS / sizeof TASKS[0])
+static sched_stats_t s_stats[TASK_COUNT];
+
+static const sonar_ring_cfg_t *ring_for(uint8_t count)
+{
+    switch (count) {
+    case 12u:
+        return &SONAR_RING_12_SDLG;
+    case 6u:
+        return &SONAR_RING_6_HCSR04;
+    case 1u:
+        return &SONAR_RING_1_SRF05;
+    default:
+        return 0;
+    }
+}
+
+void agnav_setup(void)
+{
+    hal_init();
+    s_watchdog_boot = hal_reset_cause() == HAL_RESET_WATCHDOG;
+    defaults();
+    params_init(PARAMS, (uint16_t)PARAM_COUNT);
+    bool params_ok = params_load(EEPROM_PARAMS_ADDR) == PARAMS_OK;
+
+    calib_init();
+    calib_load();
+
+    encoder_cfg_t enc[ENCODER_MAX];
+    memset(enc, 0, sizeof enc);
+    for (uint8_t i = 0; i < p_enc_count; i++) {
+        enc[i].mode = p_enc_mode;
+        enc[i].travel_per_count_nm = (uint32_t)p_enc_nm_per_count;
+    }
+    encoder_init(p_enc_count, enc);
+    odom_cfg_t oc = {p_drive_kind == DRIVE_DIFFERENTIAL ? 0u : 1u, p_track_mm, p_wheelbase_mm};
+    odom_init(&oc);
+    s_ring = ring_for(p_sonar_count);
+    if (s_ring != 0) {
+        sonar_ring_init(s_ring);
+    }
+    behaviour_init(&p_bhv, s_ring);
+    drive_cfg_t dc = {p_drive_kind, p_track_mm};
+    drive_init(&dc);
+
+    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s};
+    link_init(&lc);
+    link_state()->behaviour_enable = p_mode_flags;
+    hal_uart_init(HAL_UART_LINK, 57600u);
+    if ((calib_health() & CALIB_DEFAULTED) != 0u) {
+        link_send_statustext(MAV_SEVERITY_WARNING, "calib: EEPROM tables missing or corrupt, defaults in use");
+    }
+    if (!params_ok) {
+        link_send_statustext(MAV_SEVERITY_INFO, "params: no stored parameters, defaults in use");
+    }
+    sched_init(TASKS, (uint8_t)TASK_COUNT, s_stats);
+    hal_watchdog_start(WATCHDOG_TIMEOUT_MS);
+}
+
+void agnav_loop_once(void) { (void)sched_run(hal_time_us()); }
+
+#ifndef AGNAV_NO_MAIN
+int main(void)
+{
+    agnav_setup();
+    for (;;) {
+        agnav_loop_once();
+    }
+}
+#endif

@@ -79,7 +79,32 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+# Modules that register more subcommands with @subcommand when imported (one per area, so
+# each area keeps its CLI next to its code). Listed here so `agnav --help` shows them all.
+COMMAND_MODULES: tuple[str, ...] = (
+    "agnav_host.perception.commands",
+    "agnav_host.planning.commands",
+    "agnav_host.link.commands",
+)
+
+
+def _load_command_modules() -> None:
+    import importlib
+    import importlib.util
+
+    for name in COMMAND_MODULES:
+        if importlib.util.find_spec(name.rsplit(".", 1)[0]) is None:
+            continue  # that area is not in this build
+        try:
+            spec = importlib.util.find_spec(name)
+        except ModuleNotFoundError:
+            spec = None
+        if spec is not None:
+            importlib.import_module(name)
+
+
 def build_parser() -> argparse.ArgumentParser:
+    _load_command_modules()
     parser = argparse.ArgumentParser(prog="agnav", description="AgNav host companion")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True

@@ -2,6 +2,8 @@
  * command, move to goal) and their subsumption arbiter. See behaviour.h. */
 #include "behaviour.h"
 
+#include "units.h"
+
 /* ---- defaults ------------------------------------------------------------ */
 const behaviour_params_t BEHAVIOUR_PARAMS_DEFAULT = {
     .link_timeout_ms = 500u,
@@ -35,10 +37,10 @@ const behaviour_params_t BEHAVIOUR_PARAMS_DEFAULT = {
 
 /* ---- integer trigonometry --------------------------------------------- */
 /* cos(5 deg * k) in Q14, k = 0..18 */
-static const int16_t COS5_Q14[19] = {16384, 16322, 16135, 15826, 15396, 14849, 14189, 13421, 12551, 11585,
+static const UNITS_ROM int16_t COS5_Q14[19] = {16384, 16322, 16135, 15826, 15396, 14849, 14189, 13421, 12551, 11585,
                                      10531, 9397,  8192,  6924,  5604,  4240,  2845,  1428,  0};
 /* atan(k / 16) in cdeg, k = 0..16 */
-static const int16_t ATAN16_CDEG[17] = {0,    358,  713,  1062, 1404, 1735, 2056, 2363, 2657,
+static const UNITS_ROM int16_t ATAN16_CDEG[17] = {0,    358,  713,  1062, 1404, 1735, 2056, 2363, 2657,
                                         2936, 3201, 3451, 3687, 3909, 4119, 4315, 4500};
 
 int32_t behaviour_wrap_cdeg(int32_t a)

@@ -100,10 +100,10 @@ static inline __attribute__((always_inline)) void isr_count(enc_isr_t *e, int8_t
     e->last_edge_us = t_us;
 }
 
-/* Measured with avr-gcc 5.4 -Os (atmega2560): about 125 cycles from call to
+/* Measured with avr-gcc 5.4 -Os under simavr: ~135 cycles from call to
  * return on the longest path (a counted quadrature edge), ~60 of them the
- * three 32-bit read-modify-writes (edges, count, timestamps). See the module
- * doc for what would have to give to reach 60. */
+ * 32-bit read-modify-writes (edges, count, two timestamps). See the module
+ * doc for what would have to give to reach the 60-cycle target. */
 void encoder_isr_edge(uint8_t idx, uint8_t ab, uint32_t t_us)
 {
     if (idx >= ENCODER_MAX) {
@@ -305,13 +305,14 @@ static int32_t travel_um(enc_loop_t *w, int32_t dc)
 }
 
 /* |v| in mm/s for d_um of travel over the interval whose reciprocal is
- * recip_q16 = 65536000 / dt_us; fast_max = largest |d_um| for which
- * |d_um| * recip_q16 fits 31 bits (both worked out once per update). */
-static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, uint32_t fast_max, int32_t dt_us)
+ * recip_q16 = 65536000 / dt_us (worked out once per update). The product
+ * fits 32 bits when both factors are below 2^16 (update interval >= 1 ms and
+ * < 65 mm of travel); otherwise a 64-bit division (rare). */
+static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
 {
     uint32_t mag = (uint32_t)iabs32(d_um);
     uint32_t v;
-    if (mag <= fast_max) {
+    if (mag <= 0xFFFFu && recip_q16 <= 0xFFFFu) {
         v = (mag * recip_q16 + 32768u) >> 16;
     } else {
         v = (uint32_t)(((uint64_t)mag * 1000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us);
@@ -326,11 +327,9 @@ void encoder_update(uint32_t now_us)
 {
     int32_t dt_us = (int32_t)(now_us - s_prev_update_us);
     uint32_t recip_q16 = 0u;
-    uint32_t fast_max = 0u;
     if (dt_us > 0) {
-        /* Shared by all wheels: two divisions per update, not per wheel. */
+        /* Shared by all wheels: one division per update, not per wheel. */
         recip_q16 = (65536000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us;
-        fast_max = recip_q16 != 0u ? 0x7FFF0000u / recip_q16 : 0u;
         s_prev_update_us = now_us;
     }
 
@@ -354,7 +353,7 @@ void encoder_update(uint32_t now_us)
         if (dt_us <= 0) {
             /* Same instant as the last update: keep the previous speed. */
         } else if (adc >= (int32_t)w->crossover_counts) {
-            w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, fast_max, dt_us);
+            w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
             w->out.method = ENCODER_SPEED_COUNT;
         } else if (s.dir == 0) {
             w->out.speed_mm_s = 0;
@@ -372,7 +371,7 @@ void encoder_update(uint32_t now_us)
             } else if (s.period_us == 0u) {
                 if (dc != 0) {
                     /* First count after a start or a reversal: no period yet. */
-                    w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, fast_max, dt_us);
+                    w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
                     w->out.method = ENCODER_SPEED_COUNT;
                 } else {
                     w->out.speed_mm_s = 0;
@@ -388,9 +387,13 @@ void encoder_update(uint32_t now_us)
                     p = (uint32_t)since;
                     method = ENCODER_SPEED_DECAY;
                 }
-                int32_t v = (int32_t)((w->nm_per_count + p / 2u) / p); /* nm/us == mm/s */
-                w->out.speed_mm_s = s.dir < 0 ? -v : v;
-                w->out.method = method;
+                if (dc == 0 && method == ENCODER_SPEED_PERIOD && w->out.method == ENCODER_SPEED_PERIOD) {
+                    /* Same edge pair as last time: same speed, skip the division. */
+                } else {
+                    int32_t v = (int32_t)((w->nm_per_count + p / 2u) / p); /* nm/us == mm/s */
+                    w->out.speed_mm_s = s.dir < 0 ? -v : v;
+                    w->out.method = method;
+                }
             }
         }
 

@@ -58,12 +58,12 @@ static void send_command_ack(uint16_t command, uint8_t result, uint8_t to_sys, u
 
 static void send_param(uint16_t index)
 {
-    const param_def_t *p = params_def(index);
-    if (p == 0) {
+    param_def_t p;
+    if (!params_def(index, &p)) {
         return;
     }
     mavlink_message_t msg;
-    mavlink_msg_param_value_pack(s_cfg.sysid, s_cfg.compid, &msg, p->name, (float)params_get(index),
+    mavlink_msg_param_value_pack(s_cfg.sysid, s_cfg.compid, &msg, p.name, (float)params_get(index),
                                  MAV_PARAM_TYPE_INT32, params_count(), index);
     (void)link_send(&msg);
 }

@@ -21,8 +21,8 @@ static const UNITS_ROM uint16_t SIN_Q15[65] = {
 
 /* tan(i * 0.5 degrees) in Q24 (16777216 = 1.0), i = 0..90. Curvature needs
  * relative accuracy at small angles, hence 24 bits. Linear interpolation
- * overestimates by at most h^2/8 * tan'' with h = 0.5 deg: relative 1.9e-5
- * below 20 deg, absolute 3.8e-5 at 45 deg. 364 bytes, in flash on AVR. */
+ * overestimates by at most h^2/8 * tan'' with h = 0.5 deg: relative 2e-5
+ * below 20 deg, 3.8e-5 at 45 deg. 364 bytes, in flash on AVR. */
 static const UNITS_ROM uint32_t TAN_Q24[91] = {
     0ul, 146413ul, 292847ul, 439327ul, 585873ul, 732509ul, 879257ul, 1026138ul, 1173177ul,
     1320396ul, 1467816ul, 1615462ul, 1763356ul, 1911522ul, 2059983ul, 2208762ul, 2357884ul,
@@ -43,7 +43,7 @@ static const UNITS_ROM uint32_t TAN_Q24[91] = {
 /* 18000 / pi * 65536: cdeg per radian in Q16. */
 #define CDEG_PER_RAD_Q16 375493621ul
 #define QUARTER_TURN_BAM 0x40000000ul
-#define MAX_SUBSTEP_UM 32767L
+#define MAX_SUBSTEP_UM 32766L /* pieces <= 32767 um */
 
 static struct {
     uint32_t heading_bam;
@@ -69,16 +69,18 @@ static int32_t quarter_sin(uint32_t a)
     if (idx >= 64u) {
         return (int32_t)SIN_Q15[64];
     }
-    int32_t y0 = (int32_t)SIN_Q15[idx];
-    int32_t dy = (int32_t)SIN_Q15[idx + 1u] - y0; /* <= 804 */
-    int32_t frac = (int32_t)((a >> 8) & 0xFFFFu); /* 16-bit position inside the interval */
-    return y0 + ((dy * frac + 32768L) >> 16);
+    uint16_t y0 = SIN_Q15[idx];
+    uint16_t dy = (uint16_t)(SIN_Q15[idx + 1u] - y0); /* 0..804: table rises in the quadrant */
+    uint16_t frac = (uint16_t)(a >> 8);             /* 16-bit position inside the interval */
+    /* 16 x 16 -> 32 bit multiply (cheap on AVR) */
+    return (int32_t)y0 + (int32_t)(((uint32_t)dy * frac + 32768u) >> 16);
 }
 
 int32_t odom_sin_q15(uint32_t angle_bam)
 {
     uint32_t a = angle_bam & (QUARTER_TURN_BAM - 1u);
-    switch ((uint8_t)(angle_bam >> 30)) {
+    /* top byte, then a small shift: avr-gcc -Os would loop 30 times on >> 30 */
+    switch ((uint8_t)((uint8_t)(angle_bam >> 24) >> 6)) {
     case 0u:
         return quarter_sin(a);
     case 1u:
@@ -101,16 +103,21 @@ int32_t odom_tan_q24(int32_t angle_cdeg)
     if (a > ODOM_STEER_LIMIT_CDEG) {
         a = ODOM_STEER_LIMIT_CDEG;
     }
-    /* (x * 5243) >> 18 == x / 50 for 0 <= x <= 4500 (no division). */
-    uint8_t idx = (uint8_t)((a * 5243L) >> 18);
+    /* Table position in Q16 steps of 50 cdeg: a * 65536 / 50 = a * 1310.72,
+     * as a * 1310 + a * 737 / 1024 (no division; within 1.2 / 65536 of a step). */
+    uint32_t u = (uint32_t)a * 1310u + (((uint32_t)a * 737u + 512u) >> 10);
+    uint8_t idx = (uint8_t)(u >> 16);
+    uint16_t frac = (uint16_t)u;
     int32_t t;
-    if (idx >= 90u) {
+    if (idx >= 90u || a >= ODOM_STEER_LIMIT_CDEG) {
         t = (int32_t)TAN_Q24[90];
     } else {
-        int32_t frac = a - (int32_t)idx * 50L; /* 0..49 cdeg */
-        int32_t y0 = (int32_t)TAN_Q24[idx];
-        int32_t dy = (int32_t)TAN_Q24[idx + 1u] - y0; /* < 2^19 */
-        t = y0 + (int32_t)(((int64_t)dy * frac * 5243L + (1L << 17)) >> 18);
+        uint32_t y0 = TAN_Q24[idx];
+        uint32_t dy = TAN_Q24[idx + 1u] - y0; /* < 2^19 */
+        /* dy * frac / 2^16 with 16 x 16 multiplies: dy = hi * 2^16 + lo */
+        uint32_t lo = ((uint32_t)(uint16_t)dy * frac + 0x8000u) >> 16;
+        uint32_t hi = (uint32_t)(uint16_t)(dy >> 16) * frac;
+        t = (int32_t)(y0 + hi + lo);
     }
     return angle_cdeg < 0 ? -t : t;
 }
@@ -158,20 +165,34 @@ static int32_t mul_q16(int32_t d, uint32_t k)
     return d < 0 ? -(int32_t)r : (int32_t)r;
 }
 
+/* Round(d * c / 2^15) for |d| <= 32767, |c| <= 32768 (|d * c| < 2^30).
+ * Shift left by one and take the top half: a 16-bit shift is a register
+ * move on the AVR, a 15-bit one a loop. */
+static int32_t mul_q15(int32_t d, int32_t c)
+{
+    uint32_t p = (uint32_t)(d * c + 16384L) << 1;
+    return (int32_t)p >> 16;
+}
+
+/* v / 2 rounded toward zero, without the division call avr-gcc -Os emits. */
+static int32_t half_i32(int32_t v)
+{
+    return (v + (int32_t)((uint32_t)v >> 31)) >> 1;
+}
+
 static int32_t clamp_i32(int32_t v, int32_t lim)
 {
     return v > lim ? lim : (v < -lim ? -lim : v);
 }
 
-/* One sub-step: travel ds_um (|ds_um| <= 32768) at the midpoint heading,
+/* One sub-step: travel ds_um (|ds_um| <= 32767) at the midpoint heading,
  * heading change dth_bam (signed). */
 static void substep(int32_t ds_um, int32_t dth_bam)
 {
-    uint32_t mid = s_odom.heading_bam + (uint32_t)(dth_bam / 2);
+    uint32_t mid = s_odom.heading_bam + (uint32_t)half_i32(dth_bam);
     if (ds_um != 0) {
-        /* |ds| * 32768 <= 2^30: fits int32 with rounding. */
-        int32_t dx = (ds_um * odom_cos_q15(mid) + 16384L) >> 15;
-        int32_t dy = (ds_um * odom_sin_q15(mid) + 16384L) >> 15;
+        int32_t dx = mul_q15(ds_um, odom_cos_q15(mid));
+        int32_t dy = mul_q15(ds_um, odom_sin_q15(mid));
         add_um(&s_odom.x_mm, &s_odom.x_rem_um, dx);
         add_um(&s_odom.y_mm, &s_odom.y_rem_um, dy);
     }
@@ -192,7 +213,7 @@ static uint8_t split_shift(int32_t a, int32_t b)
 }
 
 /* Piece i of n = 2^sh pieces of v: floor(v / n), plus one for the first
- * (v mod n) pieces, so the pieces add up to v exactly and each is <= 32768. */
+ * (v mod n) pieces, so the pieces add up to v exactly and each is <= 32767. */
 static int32_t piece(int32_t v, uint8_t sh, uint32_t i)
 {
     int32_t q = v >> sh; /* floor */
@@ -277,7 +298,7 @@ void odom_update_diff(int32_t left_um, int32_t right_um, int32_t left_mm_s, int3
     /* Speeds beyond +-65 m/s are not physical: clamp so 32-bit math holds. */
     int32_t vl = clamp_i32(left_mm_s, 65535L);
     int32_t vr = clamp_i32(right_mm_s, 65535L);
-    s_odom.speed_mm_s = (vl + vr) / 2;
+    s_odom.speed_mm_s = half_i32(vl + vr);
     s_odom.yaw_rate_cdeg_s = mul_q16(vr - vl, s_odom.k_rate_diff);
 }
 
@@ -288,8 +309,8 @@ void odom_update_ackermann(int32_t rear_um, int32_t steer_cdeg, int32_t rear_mm_
     uint32_t tan_mag = (uint32_t)(left ? tan_q24 : -tan_q24);
     /* Once per call: curvature tan(steer) / L as heading bam per um (Q16),
      * and yaw rate per mm/s (Q16); |tan| <= 2^24 so 64 bits suffice. */
-    uint32_t kappa_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_yaw_ack + (1u << 23)) >> 24);
-    uint32_t krate_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_rate_ack + (1u << 23)) >> 24);
+    uint32_t kappa_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_yaw_ack + (1ul << 23)) >> 24);
+    uint32_t krate_q16 = (uint32_t)(((uint64_t)tan_mag * s_odom.k_rate_ack + (1ul << 23)) >> 24);
     uint8_t sh = split_shift(rear_um, 0);
     uint32_t n = (uint32_t)1u << sh;
     for (uint32_t i = 0; i < n; i++) {

@@ -21,10 +21,12 @@
  * int32 mm plus a 0..999 um remainder, so steps smaller than 1 mm are never
  * lost. sin/cos come from a 65-entry quarter-wave Q15 table with linear
  * interpolation: max error 1e-4 (~0.1 mm per metre of travel);
- * tan(steer) from a 0.5-degree Q24 table: relative error < 2e-5 from 1
+ * tan(steer) from a 0.5-degree Q24 table: relative error < 2.5e-5 from 1
  * to 20 degrees (curvature needs relative accuracy), < 4e-5 up to 45.
- * Per call: a few 64-bit multiplies (heading, yaw rate); no division and
- * no float.
+ * Per call: no division, no float; the differential update uses only
+ * 32-bit multiplies, the Ackermann update two 64-bit ones (curvature and
+ * yaw-rate gain, once per call). Measured on the ATmega2560 (-Os): see
+ * docs/firmware/encoder_odometry_calib.md.
  */
 #ifndef AGNAV_ODOMETRY_H
 #define AGNAV_ODOMETRY_H

@@ -1,16 +1,14 @@
 #include "params.h"
 
-#include <string.h>
-
 #include "crc16.h"
 #include "hal.h"
 
 #define PARAMS_MAGIC 0xA61Du
 
-static const param_def_t *s_table;
+static const PARAMS_ROM param_def_t *s_table;
 static uint16_t s_count;
 
-void params_init(const param_def_t *table, uint16_t count)
+void params_init(const PARAMS_ROM param_def_t *table, uint16_t count)
 {
     s_table = table;
     s_count = table != 0 ? count : 0u;
@@ -21,47 +19,64 @@ uint16_t params_count(void) { return s_count; }
 int16_t params_find(const char *name)
 {
     for (uint16_t i = 0; i < s_count; i++) {
-        if (strncmp(s_table[i].name, name, PARAMS_NAME_LEN) == 0) {
+        const PARAMS_ROM char *n = s_table[i].name;
+        uint8_t k = 0;
+        while (k < PARAMS_NAME_LEN && n[k] == name[k] && name[k] != '\0') {
+            k++;
+        }
+        if (k == PARAMS_NAME_LEN || n[k] == name[k]) {
             return (int16_t)i;
         }
     }
     return -1;
 }
 
-const param_def_t *params_def(uint16_t index) { return index < s_count ? &s_table[index] : 0; }
+bool params_def(uint16_t index, param_def_t *out)
+{
+    if (index >= s_count) {
+        return false;
+    }
+    const PARAMS_ROM uint8_t *src = (const PARAMS_ROM uint8_t *)&s_table[index];
+    uint8_t *dst = (uint8_t *)out;
+    for (uint16_t k = 0; k < sizeof *out; k++) {
+        dst[k] = src[k];
+    }
+    return true;
+}
 
 int32_t params_get(uint16_t index)
 {
     if (index >= s_count) {
         return 0;
     }
-    const param_def_t *p = &s_table[index];
-    switch (p->type) {
+    const void *v = s_table[index].value;
+    switch (s_table[index].type) {
     case PARAM_U8:
-        return *(const uint8_t *)p->value;
+        return *(const uint8_t *)v;
     case PARAM_U16:
-        return *(const uint16_t *)p->value;
+        return *(const uint16_t *)v;
     case PARAM_I16:
-        return *(const int16_t *)p->value;
+        return *(const int16_t *)v;
     default:
-        return *(const int32_t *)p->value;
+        return *(const int32_t *)v;
     }
 }
 
-static void store(const param_def_t *p, int32_t value)
+static void store(uint16_t index, int32_t value)
 {
-    switch (p->type) {
+    void *v = s_table[index].value;
+    switch (s_table[index].type) {
     case PARAM_U8:
-        *(uint8_t *)p->value = (uint8_t)value;
+        *(uint8_t *)v = (uint8_t)value;
         break;
     case PARAM_U16:
-        *(uint16_t *)p->value = (uint16_t)value;
+        *(uint16_t *)v = (uint16_t)value;
         break;
     case PARAM_I16:
-        *(int16_t *)p->value = (int16_t)value;
+        *(int16_t *)v = (int16_t)value;
         break;
     default:
-        *(int32_t *)p->value = value;
+        *(int32_t *)v = value;
         break;
     }
 }
@@ -71,19 +86,11 @@ params_result_t params_set(uint16_t index, int32_t value)
     if (index >= s_count) {
         return PARAMS_UNKNOWN;
     }
-    const param_def_t *p = &s_table[index];
-    if (value < p->min || value > p->max) {
+    if (value < s_table[index].min || value > s_table[index].max) {
         return PARAMS_OUT_OF_RANGE;
     }
-    store(p, value);
+    store(index, value);
     return PARAMS_OK;
-}
-
-void params_reset_defaults(void)
-{
-    for (uint16_t i = 0; i < s_count; i++) {
-        store(&s_table[i], s_table[i].fallback);
-    }
 }
 
 typedef struct {
@@ -114,7 +121,6 @@ params_result_t params_load(uint16_t addr)
     params_header_t h;
     hal_eeprom_read(addr, &h, sizeof h);
     if (h.magic != PARAMS_MAGIC || h.count != s_count) {
-        params_reset_defaults();
         return PARAMS_STORAGE;
     }
     uint16_t crc = crc16_ccitt_false_update(CRC16_CCITT_FALSE_INIT, &h, sizeof h);
@@ -128,7 +134,6 @@ params_result_t params_load(uint16_t addr)
     uint16_t stored;
     hal_eeprom_read(a, &stored, sizeof stored);
     if (stored != crc) {
-        params_reset_defaults();
         return PARAMS_STORAGE;
     }
     a = (uint16_t)(addr + sizeof h);
@@ -138,7 +143,6 @@ params_result_t params_load(uint16_t addr)
         hal_eeprom_read(a, &v, sizeof v);
         a = (uint16_t)(a + sizeof v);
         if (params_set(i, v) != PARAMS_OK) { /* a stored value outside today's range */
-            store(&s_table[i], s_table[i].fallback);
             result = PARAMS_STORAGE;
         }
     }

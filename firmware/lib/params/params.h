@@ -3,7 +3,9 @@
  * parameter protocol (PARAM_REQUEST_LIST / PARAM_REQUEST_READ / PARAM_SET ->
  * PARAM_VALUE). Each module declares its rows next to its code; main.c hands
  * the whole const table to params_init(). Values live in the modules' own
- * variables; this module only reads, range-checks and writes them.
+ * variables, initialised to the modules' own defaults before params_load();
+ * this module only reads, range-checks, stores and restores them, so every
+ * default is written in one place (the module's code).
  *
  * Wire encoding: every parameter is sent as MAV_PARAM_TYPE_INT32 with the value
  * C-cast to the float field (as ArduPilot and MAVProxy do); values stay below
@@ -16,6 +18,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "units.h"
+
 #define PARAMS_NAME_LEN 16u /* MAVLink param_id length; names shorter are NUL-terminated */
 
 typedef enum { PARAM_U8 = 0, PARAM_U16 = 1, PARAM_I16 = 2, PARAM_I32 = 3 } param_type_t;
@@ -26,7 +30,6 @@ typedef struct {
     void *value;     /* the module's own variable */
     int32_t min;
     int32_t max;
-    int32_t fallback; /* default, used by params_reset_defaults() */
 } param_def_t;
 
 typedef enum {
@@ -36,19 +39,24 @@ typedef enum {
     PARAMS_STORAGE = -3
 } params_result_t;
 
-/* Register the table (kept by reference; must be static const). */
-void params_init(const param_def_t *table, uint16_t count);
+/* The table lives in flash on the AVR (const RAM is scarce there): declare it
+ *   static const PARAMS_ROM param_def_t TABLE[] = {...};
+ * and register it (kept by reference). */
+#define PARAMS_ROM UNITS_ROM
+void params_init(const PARAMS_ROM param_def_t *table, uint16_t count);
 uint16_t params_count(void);
 /* Find by name (up to 16 chars, not necessarily NUL-terminated); -1 when unknown. */
 int16_t params_find(const char *name);
-const param_def_t *params_def(uint16_t index);
+/* Copy row index into *out (false when out of range). */
+bool params_def(uint16_t index, param_def_t *out);
 int32_t params_get(uint16_t index);
 /* Range-checked set; out-of-range values are refused and the old value stays. */
 params_result_t params_set(uint16_t index, int32_t value);
-void params_reset_defaults(void);
 
-/* EEPROM persistence at addr: {magic, count, values[], crc16}. Load falls back to
- * defaults (returning PARAMS_STORAGE) when missing, corrupt or of another table size. */
+/* EEPROM persistence at addr: {magic, count, values[], crc16}. Load leaves every
+ * value as it is (the module defaults, at boot) and returns PARAMS_STORAGE when the
+ * record is missing, corrupt or of another table size; a stored value outside
+ * today's range is skipped (PARAMS_STORAGE) and the others are applied. */
 params_result_t params_save(uint16_t addr);
 params_result_t params_load(uint16_t addr);
 

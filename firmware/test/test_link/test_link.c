@@ -11,8 +11,8 @@
 #define HOST_COMP 190u
 
 static uint16_t s_timeout_ms;
-static const param_def_t TABLE[] = {
-    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000, 500},
+static const PARAMS_ROM param_def_t TABLE[] = {
+    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
 };
 
 static mavlink_message_t s_msg;
@@ -44,8 +44,8 @@ static uint8_t robot_sent(uint32_t msgid)
 void setUp(void)
 {
     sim_reset();
+    s_timeout_ms = 500u;
     params_init(TABLE, 1u);
-    params_reset_defaults();
     link_cfg_t cfg = {1u, 1u, 2460, 2000};
     link_init(&cfg);
 }

@@ -8,26 +8,36 @@ static uint16_t s_timeout_ms;
 static int16_t s_trim_cdeg;
 static int32_t s_big;
 
-static const param_def_t TABLE[] = {
-    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000, 500},
-    {"STEER_TRIM_CDEG", PARAM_I16, &s_trim_cdeg, -500, 500, 0},
-    {"BIG_VALUE", PARAM_I32, &s_big, -100000, 100000, 42},
+static const PARAMS_ROM param_def_t TABLE[] = {
+    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+    {"STEER_TRIM_CDEG", PARAM_I16, &s_trim_cdeg, -500, 500},
+    {"BIG_VALUE", PARAM_I32, &s_big, -100000, 100000},
 };
+
+/* The modules' own defaults, set before params_load() as main.c does at boot. */
+static void module_defaults(void)
+{
+    s_timeout_ms = 500u;
+    s_trim_cdeg = 0;
+    s_big = 42;
+}
 
 void setUp(void)
 {
     sim_reset();
+    module_defaults();
     params_init(TABLE, 3u);
-    params_reset_defaults();
 }
 
 void tearDown(void) {}
 
-static void test_params_defaults_are_written_to_module_variables(void)
+static void test_params_get_reads_each_type_from_module_variables(void)
 {
-    TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
-    TEST_ASSERT_EQUAL_INT16(0, s_trim_cdeg);
-    TEST_ASSERT_EQUAL_INT32(42, s_big);
+    s_trim_cdeg = -7;
+    TEST_ASSERT_EQUAL_INT32(500, params_get(0u));
+    TEST_ASSERT_EQUAL_INT32(-7, params_get(1u));
+    TEST_ASSERT_EQUAL_INT32(42, params_get(2u));
+    TEST_ASSERT_EQUAL_UINT16(3u, params_count());
 }
 
 static void test_params_find_by_name_without_terminator(void)
@@ -51,38 +61,58 @@ static void test_params_save_then_load_round_trips(void)
     params_set(0u, 750);
     params_set(2u, -99999);
     TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
-    params_reset_defaults();
+    module_defaults(); /* a reboot */
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
     TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
     TEST_ASSERT_EQUAL_UINT16(750u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT32(-99999, s_big);
 }
 
-static void test_params_load_falls_back_to_defaults_on_corruption(void)
+static void test_params_load_keeps_defaults_on_corruption(void)
 {
     params_set(0u, 750);
+    params_set(1u, 120);
     params_save(512u);
     sim_eeprom_bytes()[512u + 5u] ^= 0x40u; /* inside the first value */
-    params_set(0u, 900);
+    module_defaults(); /* a reboot */
+    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+    TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
+    TEST_ASSERT_EQUAL_INT16_MESSAGE(0, s_trim_cdeg, "no value of a corrupt record is applied");
+}
+
+static void test_params_load_keeps_defaults_when_erased(void)
+{
     TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
 }
 
-static void test_params_load_falls_back_when_erased(void)
+static void test_params_load_skips_a_stored_value_outside_todays_range(void)
 {
-    params_set(0u, 900);
+    s_timeout_ms = 5000u;
+    s_trim_cdeg = 100;
+    params_save(512u);
+    module_defaults();
+    /* Narrower range in a newer firmware: simulate by a table with max 1000. */
+    static const PARAMS_ROM param_def_t NARROW[] = {
+        {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 1000},
+        {"STEER_TRIM_CDEG", PARAM_I16, &s_trim_cdeg, -500, 500},
+        {"BIG_VALUE", PARAM_I32, &s_big, -100000, 100000},
+    };
+    params_init(NARROW, 3u);
     TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
+    TEST_ASSERT_EQUAL_INT16(100, s_trim_cdeg);
 }
 
 int main(void)
 {
     UNITY_BEGIN();
-    RUN_TEST(test_params_defaults_are_written_to_module_variables);
+    RUN_TEST(test_params_get_reads_each_type_from_module_variables);
     RUN_TEST(test_params_find_by_name_without_terminator);
     RUN_TEST(test_params_set_refuses_out_of_range_and_keeps_old_value);
     RUN_TEST(test_params_save_then_load_round_trips);
-    RUN_TEST(test_params_load_falls_back_to_defaults_on_corruption);
-    RUN_TEST(test_params_load_falls_back_when_erased);
+    RUN_TEST(test_params_load_keeps_defaults_on_corruption);
+    RUN_TEST(test_params_load_keeps_defaults_when_erased);
+    RUN_TEST(test_params_load_skips_a_stored_value_outside_todays_range);
     return UNITY_END();
 }

@@ -1,0 +1,52 @@
+/*
+ * Output stage: physical drive commands (cdeg, mm/s) -> actuator commands,
+ * through the calibration tables, for the two platform kinds AgNav supports.
+ *
+ * Calibration tables use the reference car's 8-bit command unit (ref 003:
+ * neutral steering 133, speed dead band below ~32). The output stage maps that
+ * byte to what the hardware takes:
+ *   steering servo  pulse_us = 1000 + byte * 1000 / 255   (0 -> 1000 us, 255 -> 2000 us)
+ *   ESC (throttle)  pulse_us = 1500 +/- byte * 500 / 255  (sign = direction; 0 -> 1500 us)
+ *   H-bridge        duty = byte, direction line = sign (differential drive, per side)
+ * Ackermann: steering table for the servo, speed table for the ESC.
+ * Differential: the steering angle is turned into a yaw rate as if the robot
+ * were an Ackermann car of wheelbase track_mm (omega = v tan(phi) / track), and
+ * each side's speed goes through that side's speed table.
+ */
+#ifndef AGNAV_DRIVE_H
+#define AGNAV_DRIVE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+typedef enum { DRIVE_ACKERMANN = 0, DRIVE_DIFFERENTIAL = 1 } drive_kind_t;
+
+typedef struct {
+    uint8_t kind;      /* drive_kind_t */
+    uint16_t track_mm; /* differential: wheel separation */
+} drive_cfg_t;
+
+/* What went to the actuators last (for telemetry and tests). */
+typedef struct {
+    uint16_t steer_us;    /* Ackermann servo pulse */
+    uint16_t throttle_us; /* Ackermann ESC pulse */
+    int16_t left_mm_s;    /* differential: per-side speeds asked of the tables */
+    int16_t right_mm_s;
+    uint8_t left_duty;
+    uint8_t right_duty;
+    int8_t direction;     /* sign of the commanded speed, for Hall encoder hints */
+} drive_output_t;
+
+void drive_init(const drive_cfg_t *cfg);
+/* Physical command (positive steer = left, positive speed = forward). */
+void drive_apply(int16_t steer_cdeg, int16_t speed_mm_s);
+/* Calibration mode: table units straight to the outputs (speed byte signed by dir). */
+void drive_apply_raw(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir);
+/* Neutral outputs: centred steering, zero throttle / duty. */
+void drive_stop(void);
+const drive_output_t *drive_output(void);
+
+uint16_t drive_servo_us_from_byte(uint16_t byte);
+uint16_t drive_esc_us_from_byte(uint16_t byte, int8_t dir);
+
+#endif

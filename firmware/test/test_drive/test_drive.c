@@ -1,0 +1,107 @@
+/* Output stage: physical command -> calibration tables -> servo / ESC / H-bridge. */
+#include <unity.h>
+
+#include "calib.h"
+#include "drive.h"
+#include "hal.h"
+#include "sim/hal_sim.h"
+
+static void ackermann(void)
+{
+    drive_cfg_t c = {DRIVE_ACKERMANN, 0u};
+    drive_init(&c);
+}
+
+void setUp(void)
+{
+    sim_reset();
+    calib_init();
+    ackermann();
+}
+
+void tearDown(void) {}
+
+static void test_drive_byte_to_servo_pulse_spans_1000_to_2000_us(void)
+{
+    TEST_ASSERT_EQUAL_UINT16(1000u, drive_servo_us_from_byte(0u));
+    TEST_ASSERT_EQUAL_UINT16(2000u, drive_servo_us_from_byte(255u));
+    TEST_ASSERT_EQUAL_UINT16(1522u, drive_servo_us_from_byte(133u));
+    TEST_ASSERT_EQUAL_UINT16(2000u, drive_servo_us_from_byte(400u));
+}
+
+static void test_drive_esc_pulse_is_signed_around_1500_us(void)
+{
+    TEST_ASSERT_EQUAL_UINT16(1500u, drive_esc_us_from_byte(100u, 0));
+    TEST_ASSERT_EQUAL_UINT16(1696u, drive_esc_us_from_byte(100u, 1));
+    TEST_ASSERT_EQUAL_UINT16(1304u, drive_esc_us_from_byte(100u, -1));
+}
+
+static void test_drive_stop_centres_steering_and_neutral_throttle(void)
+{
+    drive_apply(2000, 800);
+    drive_stop();
+    uint16_t centre = drive_servo_us_from_byte(calib_pwm_from_value(CALIB_STEER, 0));
+    TEST_ASSERT_EQUAL_UINT16(centre, sim_servo_us(HAL_SERVO_STEER));
+    TEST_ASSERT_EQUAL_UINT16(1500u, sim_servo_us(HAL_SERVO_THROTTLE));
+}
+
+static void test_drive_left_steer_goes_through_the_table_to_the_servo(void)
+{
+    drive_apply(1250, 800);
+    uint16_t want = drive_servo_us_from_byte(calib_pwm_from_value(CALIB_STEER, 1250));
+    TEST_ASSERT_EQUAL_UINT16(want, sim_servo_us(HAL_SERVO_STEER));
+    /* ref 003 table: left turns are above the 133 centre */
+    TEST_ASSERT_TRUE(sim_servo_us(HAL_SERVO_STEER) > drive_servo_us_from_byte(133u));
+    uint16_t speed_b = calib_pwm_from_value(CALIB_SPEED, 800);
+    TEST_ASSERT_EQUAL_UINT16(drive_esc_us_from_byte(speed_b, 1), sim_servo_us(HAL_SERVO_THROTTLE));
+    TEST_ASSERT_EQUAL_INT8(1, drive_output()->direction);
+}
+
+static void test_drive_speed_in_dead_band_gives_neutral_throttle(void)
+{
+    drive_apply(0, 100); /* 0.1 m/s is below the car's 0.435 m/s minimum */
+    TEST_ASSERT_EQUAL_UINT16(1500u, sim_servo_us(HAL_SERVO_THROTTLE));
+}
+
+static void test_drive_reverse_speed_sets_direction_and_lower_pulse(void)
+{
+    drive_apply(0, -800);
+    TEST_ASSERT_EQUAL_INT8(-1, drive_output()->direction);
+    TEST_ASSERT_TRUE(sim_servo_us(HAL_SERVO_THROTTLE) < 1500u);
+}
+
+static void test_drive_differential_turn_left_slows_left_side(void)
+{
+    drive_cfg_t c = {DRIVE_DIFFERENTIAL, 400u};
+    drive_init(&c);
+    drive_apply(1500, 1000); /* 15 deg left */
+    const drive_output_t *o = drive_output();
+    TEST_ASSERT_TRUE(o->left_mm_s < 1000 && o->right_mm_s > 1000);
+    /* v (1 -+ tan(15 deg)/2): tan 15 deg = 0.2679 -> 866 / 1134 mm/s */
+    TEST_ASSERT_INT16_WITHIN(10, 866, o->left_mm_s);
+    TEST_ASSERT_INT16_WITHIN(10, 1134, o->right_mm_s);
+    TEST_ASSERT_EQUAL_UINT8(o->left_duty, sim_pwm_duty(0u));
+    TEST_ASSERT_TRUE(sim_pwm_duty(1u) > sim_pwm_duty(0u));
+    TEST_ASSERT_FALSE(sim_pwm_reverse(0u));
+}
+
+static void test_drive_raw_mode_passes_table_units_through(void)
+{
+    drive_apply_raw(171u, 60u, 1);
+    TEST_ASSERT_EQUAL_UINT16(drive_servo_us_from_byte(171u), sim_servo_us(HAL_SERVO_STEER));
+    TEST_ASSERT_EQUAL_UINT16(drive_esc_us_from_byte(60u, 1), sim_servo_us(HAL_SERVO_THROTTLE));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_drive_byte_to_servo_pulse_spans_1000_to_2000_us);
+    RUN_TEST(test_drive_esc_pulse_is_signed_around_1500_us);
+    RUN_TEST(test_drive_stop_centres_steering_and_neutral_throttle);
+    RUN_TEST(test_drive_left_steer_goes_through_the_table_to_the_servo);
+    RUN_TEST(test_drive_speed_in_dead_band_gives_neutral_throttle);
+    RUN_TEST(test_drive_reverse_speed_sets_direction_and_lower_pulse);
+    RUN_TEST(test_drive_differential_turn_left_slows_left_side);
+    RUN_TEST(test_drive_raw_mode_passes_table_units_through);
+    return UNITY_END();
+}
