@@ -3,10 +3,14 @@
 
     .venv/bin/python tools/fw_size.py [--env megaatmega2560] [--no-build]
 
-Builds the env (unless --no-build), then reads the linker map (after
---gc-sections, so only what is really linked counts) and sums each input
-section by the module it came from (firmware/lib/<module>, src, libc/libgcc).
-Flash = .text + .progmem + .data (initial values); RAM = .data + .bss + .noinit.
+Builds the env (unless --no-build). Totals come from that (LTO) ELF. The split
+per module comes from a second build of the same env without -flto (into
+build/size-nolto/, since LTO merges every module into one object): its linker
+map (after --gc-sections, so only what is really linked counts) is summed by
+the module each input section came from (firmware/lib/<module>, src,
+libc/libgcc). Flash = .text + .progmem + .data (initial values); RAM = .data +
+.bss + .noinit. Module figures are of the non-LTO build and add up to a little
+more than the LTO total.
 """
 import argparse
 import os
@@ -68,12 +72,15 @@ def main(argv=None) -> int:
     ap.add_argument("--no-build", action="store_true")
     args = ap.parse_args(argv)
     build = REPO / ".pio" / "build" / args.env
+    nolto_root = REPO / "build" / "size-nolto"
     if not args.no_build:
         env = dict(os.environ, PLATFORMIO_CORE_DIR=str(REPO / ".pio-core"),
                    PLATFORMIO_DISABLE_UPGRADE_CHECK="true")
-        subprocess.run([str(REPO / ".venv" / "bin" / "pio"), "run", "-s", "-e", args.env],
-                       cwd=REPO, env=env, check=True)
-    map_path = build / "firmware.map"
+        pio = str(REPO / ".venv" / "bin" / "pio")
+        subprocess.run([pio, "run", "-s", "-e", args.env], cwd=REPO, env=env, check=True)
+        subprocess.run([pio, "run", "-s", "-e", args.env], cwd=REPO, check=True,
+                       env=dict(env, PLATFORMIO_BUILD_UNFLAGS="-flto", PLATFORMIO_BUILD_DIR=str(nolto_root)))
+    map_path = nolto_root / args.env / "firmware.map"
     if not map_path.is_file():
         print(f"fw_size: {map_path} not found; build first", file=sys.stderr)
         return 2
@@ -86,7 +93,7 @@ def main(argv=None) -> int:
     print(f"{'module':<14}{'flash B':>10}{'RAM B':>8}")
     for mod, v in sorted(per.items(), key=lambda kv: -kv[1]["flash"]):
         print(f"{mod:<14}{v['flash']:>10}{v['ram']:>8}")
-    print(f"{'TOTAL (ELF)':<14}{flash_total:>10}{ram_total:>8}")
+    print(f"{'TOTAL (LTO ELF)':<14}{flash_total:>10}{ram_total:>8}")
     print(f"flash {flash_total} B of target {FLASH_LIMIT} B ({'OK' if flash_total <= FLASH_LIMIT else 'OVER'}); "
           f"static RAM {ram_total} B of target {RAM_LIMIT} B ({'OK' if ram_total <= RAM_LIMIT else 'OVER'})")
     return 0

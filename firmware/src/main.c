@@ -61,23 +61,41 @@ static const PARAMS_ROM param_def_t PARAMS[] = {
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
+/* Build-time overrides of the robot profile (benchmark and board variants use them). */
+#ifndef AGNAV_DEFAULT_DRIVE_KIND
+#define AGNAV_DEFAULT_DRIVE_KIND DRIVE_ACKERMANN
+#endif
+#ifndef AGNAV_DEFAULT_ENC_COUNT
+#define AGNAV_DEFAULT_ENC_COUNT 1u
+#endif
+#ifndef AGNAV_DEFAULT_ENC_MODE
+#define AGNAV_DEFAULT_ENC_MODE ENCODER_MODE_HALL
+#endif
+#ifndef AGNAV_DEFAULT_ENC_NM_PER_CNT
+#define AGNAV_DEFAULT_ENC_NM_PER_CNT 13550000L /* ref 003 car: 16 magnets, 13.55 mm per pulse */
+#endif
+#ifndef AGNAV_DEFAULT_MODES
+#define AGNAV_DEFAULT_MODES BHV_MODE_AVOID
+#endif
+
 static void defaults(void)
 {
     p_sysid = 1u;
-    p_drive_kind = DRIVE_ACKERMANN;
-    p_enc_count = 1u;
-    p_enc_mode = ENCODER_MODE_HALL;
-    p_enc_nm_per_count = 13550000L; /* ref 003 car: 16 magnets, 13.55 mm per pulse */
+    p_drive_kind = AGNAV_DEFAULT_DRIVE_KIND;
+    p_enc_count = AGNAV_DEFAULT_ENC_COUNT;
+    p_enc_mode = AGNAV_DEFAULT_ENC_MODE;
+    p_enc_nm_per_count = AGNAV_DEFAULT_ENC_NM_PER_CNT;
     p_track_mm = 191u;
     p_wheelbase_mm = 174u;          /* ref 003 car */
     p_sonar_count = 12u;
-    p_mode_flags = BHV_MODE_AVOID;
+    p_mode_flags = AGNAV_DEFAULT_MODES;
     p_bhv = BEHAVIOUR_PARAMS_DEFAULT;
 }
 
 /* ---- state ---------------------------------------------------------------------------------- */
 static behaviour_in_t s_in;
 static behaviour_out_t s_out;
+static uint32_t s_out_ms; /* tick time of s_out */
 static uint32_t s_frame_ms;
 static bool s_watchdog_boot;
 static const sonar_ring_cfg_t *s_ring;
@@ -85,46 +103,41 @@ static const sonar_ring_cfg_t *s_ring;
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
 
 /* ---- tasks ---------------------------------------------------------------------------------- */
-static void handle_calib_requests(void)
+/* AGNAV_CALIB_TABLE (write) and AGNAV_CALIB_REQUEST (read / save / defaults), from link_poll(). */
+static void on_calib(const mavlink_message_t *in)
 {
-    link_state_t *ls = link_state();
     mavlink_message_t msg;
-    if (ls->calib_table_pending) {
-        ls->calib_table_pending = false;
+    uint8_t result;
+    uint8_t id;
+    if (in->msgid == MAVLINK_MSG_ID_AGNAV_CALIB_TABLE) {
+        mavlink_agnav_calib_table_t m;
         calib_table_t t;
-        uint8_t result = link_calib_from_msg(&ls->calib_table, &t);
+        mavlink_msg_agnav_calib_table_decode(in, &m);
+        id = m.table_id;
+        result = link_calib_from_msg(&m, &t);
         if (result == 0u) {
-            result = link_calib_result(calib_set_table(ls->calib_table.table_id, &t));
+            result = link_calib_result(calib_set_table(id, &t));
         }
-        mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, ls->calib_table.table_id, result,
-                                         255u, s_out.failsafe_flags);
-        send(&msg);
-    }
-    if (ls->calib_request_pending) {
-        ls->calib_request_pending = false;
-        uint8_t id = ls->calib_request.table_id;
-        uint8_t result = AGNAV_CALIB_ACCEPTED;
-        if (ls->calib_request.action == AGNAV_CALIB_ACTION_SAVE) {
+    } else {
+        id = mavlink_msg_agnav_calib_request_get_table_id(in);
+        uint8_t action = mavlink_msg_agnav_calib_request_get_action(in);
+        calib_table_t t;
+        if (action == AGNAV_CALIB_ACTION_SAVE) {
             result = link_calib_result(calib_save());
-        } else if (ls->calib_request.action == AGNAV_CALIB_ACTION_DEFAULTS) {
-            calib_table_t t;
+        } else if (action == AGNAV_CALIB_ACTION_DEFAULTS) {
             result = calib_get_default(id, &t) ? link_calib_result(calib_set_table(id, &t)) : AGNAV_CALIB_BAD_TABLE;
+        } else if (calib_get_table(id, &t)) {
+            mavlink_agnav_calib_table_t m;
+            link_calib_to_msg(id, &t, &m);
+            mavlink_msg_agnav_calib_table_encode(link_sysid(), link_compid(), &msg, &m);
+            send(&msg);
+            return;
         } else {
-            calib_table_t t;
-            if (calib_get_table(id, &t)) {
-                mavlink_agnav_calib_table_t m;
-                link_calib_to_msg(id, &t, &m);
-                m.target_system = 0u;
-                m.target_component = 0u;
-                mavlink_msg_agnav_calib_table_encode(link_sysid(), link_compid(), &msg, &m);
-                send(&msg);
-                return;
-            }
             result = AGNAV_CALIB_BAD_TABLE;
         }
-        mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, id, result, 255u, s_out.failsafe_flags);
-        send(&msg);
     }
+    mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, id, result, 255u, s_out.failsafe_flags);
+    send(&msg);
 }
 
 static void task_link(void)
@@ -135,7 +148,6 @@ static void task_link(void)
         ls->arm_request = false;
         behaviour_arm();
     }
-    handle_calib_requests();
 }
 
 static void task_sonar(void)
@@ -162,17 +174,18 @@ static void update_odometry(void)
         int32_t l_um = m[0].delta_um, r_um = m[1].delta_um;
         int32_t l_v = m[0].speed_mm_s, r_v = m[1].speed_mm_s;
         if (p_enc_count >= 4u) { /* skid steer: wheels 2 (left) and 3 (right) averaged in */
-            l_um = (l_um + m[2].delta_um) / 2;
-            r_um = (r_um + m[3].delta_um) / 2;
-            l_v = (l_v + m[2].speed_mm_s) / 2;
-            r_v = (r_v + m[3].speed_mm_s) / 2;
+            /* >> 1, not / 2: avr-gcc -Os calls a ~600-cycle division routine for a signed / 2. */
+            l_um = (l_um + m[2].delta_um) >> 1;
+            r_um = (r_um + m[3].delta_um) >> 1;
+            l_v = (l_v + m[2].speed_mm_s) >> 1;
+            r_v = (r_v + m[3].speed_mm_s) >> 1;
         }
         odom_update_diff(l_um, r_um, l_v, r_v);
     } else {
         int32_t rear_um = m[0].delta_um, rear_v = m[0].speed_mm_s;
         if (p_enc_count >= 2u) { /* two rear wheels: their mean is the axle centre */
-            rear_um = (rear_um + m[1].delta_um) / 2;
-            rear_v = (rear_v + m[1].speed_mm_s) / 2;
+            rear_um = (rear_um + m[1].delta_um) >> 1;
+            rear_v = (rear_v + m[1].speed_mm_s) >> 1;
         }
         odom_update_ackermann(rear_um, s_out.steer_cdeg, rear_v);
     }
@@ -226,9 +239,14 @@ static void task_control(void)
     for (uint8_t i = 0; i < p_enc_count; i++) {
         encoder_set_direction_hint(i, drive_output()->direction);
     }
+    s_out_ms = now_ms;
+}
 
+/* The active layer and its reason, every control tick (runs right after task_control). */
+static void task_telemetry_50hz(void)
+{
     mavlink_message_t msg;
-    mavlink_msg_agnav_behaviour_status_pack(link_sysid(), link_compid(), &msg, now_ms, s_out.layer, s_out.reason,
+    mavlink_msg_agnav_behaviour_status_pack(link_sysid(), link_compid(), &msg, s_out_ms, s_out.layer, s_out.reason,
                                             s_out.failsafe_flags, s_out.steer_cdeg, s_out.speed_mm_s);
     send(&msg);
 }
@@ -266,9 +284,26 @@ static void task_telemetry_10hz(void)
     }
 }
 
+#define TASK_COUNT 6u
+static const sched_task_t TASKS[TASK_COUNT]; /* the table, defined below */
+static sched_stats_t s_stats[TASK_COUNT];
+static uint8_t s_stats_next;
+
 static void task_telemetry_1hz(void)
 {
     mavlink_message_t msg;
+    /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
+    {
+        char name[10] = {'T', '_', 0, 0, 0, 0, 0, 0, 0, 0};
+        const char *n = TASKS[s_stats_next].name;
+        for (uint8_t k = 0; k < 8u && n[k] != '\0'; k++) {
+            name[2u + k] = n[k];
+        }
+        mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), name,
+                                         (int32_t)s_stats[s_stats_next].worst_us);
+        send(&msg);
+        s_stats_next = (uint8_t)((s_stats_next + 1u) % TASK_COUNT);
+    }
     uint8_t state = (s_out.failsafe_flags & BHV_FS_STOP_MASK) != 0u ? MAV_STATE_CRITICAL : MAV_STATE_ACTIVE;
     mavlink_msg_heartbeat_pack(link_sysid(), link_compid(), &msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC,
                                MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, s_out.layer, state);
@@ -276,15 +311,15 @@ static void task_telemetry_1hz(void)
 }
 
 /* The static scheduler table: {task, period ms, budget us, name}. */
-static const sched_task_t TASKS[] = {
+static const sched_task_t TASKS[TASK_COUNT] = {
     {task_link, 2u, 600u, "link"},
     {task_sonar, 1u, 300u, "sonar"},
     {task_control, 20u, 1000u, "control"},
+    {task_telemetry_50hz, 20u, 300u, "telem50"},
     {task_telemetry_10hz, 100u, 800u, "telem10"},
     {task_telemetry_1hz, 1000u, 300u, "telem1"},
 };
-#define TASK_COUNT (sizeof TASKS / sizeof TASKS[0])
-static sched_stats_t s_stats[TASK_COUNT];
+_Static_assert(sizeof TASKS / sizeof TASKS[0] == TASK_COUNT, "TASK_COUNT matches the table");
 
 static const sonar_ring_cfg_t *ring_for(uint8_t count)
 {
@@ -328,7 +363,7 @@ void agnav_setup(void)
     drive_cfg_t dc = {p_drive_kind, p_track_mm};
     drive_init(&dc);
 
-    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s};
+    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib};
     link_init(&lc);
     link_state()->behaviour_enable = p_mode_flags;
     hal_uart_init(HAL_UART_LINK, 57600u);

@@ -6,6 +6,7 @@
 
 #include <stddef.h>
 
+#include "encoder_isr.h"
 #include "hal.h"
 
 /* ---- quadrature decode --------------------------------------------------
@@ -14,7 +15,7 @@
  * Same state: 0 (repeated interrupt, no motion). Both lines changed: error.
  * The inverted table is the same with the signs swapped, so the ISR never
  * multiplies. Kept in RAM (32 bytes) because the ISR reads it. */
-#define QERR 2
+#define QERR ENCODER_QERR
 
 static const int8_t QUAD_FWD[16] = {
     /* old 0 (00) -> new 0..3 */ 0, -1, +1, QERR,
@@ -30,21 +31,6 @@ static const int8_t QUAD_INV[16] = {
     QERR, -1, +1, 0,
 };
 
-/* ISR-side record. Written only by encoder_isr_edge (and by init /
- * set_count / set_direction_hint with interrupts masked); read only through
- * encoder_snapshot(). */
-typedef struct {
-    uint32_t count; /* unsigned so that the wrap is defined; read as int32_t */
-    uint32_t edges;
-    uint32_t errors;
-    uint32_t last_edge_us;
-    uint32_t prev_edge_us; /* previous same-direction count; == last_edge_us when unknown */
-    const int8_t *table; /* QUAD_FWD / QUAD_INV, or NULL in Hall mode */
-    uint8_t ab;          /* last levels, (A << 1) | B */
-    int8_t dir;          /* sign of the last counted step, 0 = none yet */
-    int8_t hint;         /* Hall mode: sign applied to each pulse (already inverted) */
-} enc_isr_t;
-
 /* Loop-side state and derived constants. */
 typedef struct {
     uint32_t nm_per_count;     /* travel per count, nm; also (mm/s)*us for the period method */
@@ -58,6 +44,9 @@ typedef struct {
     int32_t prev_count;
     uint32_t prev_edges;
     uint32_t prev_errors;
+    /* 32-bit extension of the ISR's 16-bit counters (folded by fold()). */
+    uint32_t ext_count, ext_edges, ext_errors;
+    uint16_t seen_count, seen_edges, seen_errors;
     uint16_t win_edges;
     uint16_t win_errors;
     encoder_motion_t out;
@@ -67,72 +56,34 @@ typedef struct {
  * every other access sits between hal_irq_save()/hal_irq_restore(), which
  * are compiler barriers (external calls / asm with a memory clobber). This
  * lets the ISR keep values in registers instead of re-reading memory. */
-static enc_isr_t s_isr[ENCODER_MAX];
+encoder_isr_t encoder_isr_state[ENCODER_MAX];
+#define s_isr encoder_isr_state
 static enc_loop_t s_loop[ENCODER_MAX];
 static uint32_t s_prev_update_us;
 
 /* ---- ISR side --------------------------------------------------------- */
 
-/* Keep a computed pointer in one register: without this, avr-gcc -Os
- * recomputes &s_isr[idx] (a multiply) after every branch. */
-#if defined(__GNUC__)
-#define ENC_KEEP_IN_REG(p) __asm__("" : "+r"(p))
-#else
-#define ENC_KEEP_IN_REG(p) ((void)0)
-#endif
-
-/* Count one +-1 step and keep the timestamps for the period method. */
-static inline __attribute__((always_inline)) void isr_count(enc_isr_t *e, int8_t step, uint32_t t_us)
-{
-    uint32_t c = e->count;
-    if (step > 0) { /* increment/decrement: no sign extension to 32 bits */
-        c++;
-    } else {
-        c--;
-    }
-    e->count = c;
-    if (step == e->dir) {
-        e->prev_edge_us = e->last_edge_us; /* period = last - prev, worked out in the snapshot */
-    } else {
-        e->dir = step;
-        e->prev_edge_us = t_us; /* direction changed or first count: period unknown (0) */
-    }
-    e->last_edge_us = t_us;
-}
-
-/* Measured with avr-gcc 5.4 -Os under simavr: ~135 cycles from call to
- * return on the longest path (a counted quadrature edge), ~60 of them the
- * 32-bit read-modify-writes (edges, count, two timestamps). See the module
- * doc for what would have to give to reach the 60-cycle target. */
+/* The generic hook (sim HAL, STM32): the same inline step the AVR ISR uses. */
 void encoder_isr_edge(uint8_t idx, uint8_t ab, uint32_t t_us)
 {
     if (idx >= ENCODER_MAX) {
         return;
     }
-    enc_isr_t *e = &s_isr[idx];
-    ENC_KEEP_IN_REG(e);
-    uint8_t old = e->ab;
-    ab &= 3u;
-    e->ab = ab;
-    e->edges++;
-    const int8_t *table = e->table;
-    if (table != NULL) {
-        int8_t step = table[(uint8_t)((uint8_t)(old << 2) | ab)];
-        if (step == 0) {
-            return; /* same levels again: no motion */
-        }
-        if (step == QERR) {
-            e->errors++; /* both lines changed: a missed edge, direction unknown */
-            return;
-        }
-        isr_count(e, step, t_us);
-    } else {
-        /* Hall: count the rising edge of A only (one count per pulse). */
-        if ((ab & 2u) == 0u || (old & 2u) != 0u) {
-            return;
-        }
-        isr_count(e, e->hint, t_us);
-    }
+    encoder_isr_step(&s_isr[idx], (uint8_t)(ab & 3u), t_us);
+}
+
+/* Take the ISR's 16-bit counters into the 32-bit loop-side totals. Called with
+ * interrupts masked. */
+static void fold(uint8_t idx)
+{
+    enc_loop_t *w = &s_loop[idx];
+    const encoder_isr_t *e = &s_isr[idx];
+    w->ext_count += (uint32_t)(int32_t)(int16_t)(uint16_t)(e->count - w->seen_count);
+    w->ext_edges += (uint16_t)(e->edges - w->seen_edges);
+    w->ext_errors += (uint16_t)(e->errors - w->seen_errors);
+    w->seen_count = e->count;
+    w->seen_edges = e->edges;
+    w->seen_errors = e->errors;
 }
 
 void encoder_set_direction_hint(uint8_t idx, int8_t sign)
@@ -152,11 +103,12 @@ bool encoder_snapshot(uint8_t idx, encoder_snapshot_t *out)
     if (idx >= ENCODER_MAX || out == NULL) {
         return false;
     }
-    enc_isr_t *e = &s_isr[idx];
+    encoder_isr_t *e = &s_isr[idx];
     hal_irq_state_t st = hal_irq_save();
-    out->count = (int32_t)e->count; /* two's complement view of the wrapping counter */
-    out->edges = e->edges;
-    out->errors = e->errors;
+    fold(idx);
+    out->count = (int32_t)s_loop[idx].ext_count; /* two's complement view of the wrapping counter */
+    out->edges = s_loop[idx].ext_edges;
+    out->errors = s_loop[idx].ext_errors;
     out->last_edge_us = e->last_edge_us;
     out->period_us = e->last_edge_us - e->prev_edge_us; /* unsigned: right across the 2^32 wrap */
     out->dir = e->dir;
@@ -170,7 +122,8 @@ void encoder_set_count(uint8_t idx, int32_t count)
         return;
     }
     hal_irq_state_t st = hal_irq_save();
-    s_isr[idx].count = (uint32_t)count;
+    fold(idx);
+    s_loop[idx].ext_count = (uint32_t)count;
     hal_irq_restore(st);
     s_loop[idx].prev_count = count;
 }
@@ -217,7 +170,7 @@ static bool configure_wheel(uint8_t i, const encoder_cfg_t *cfg)
                                                       : (uint8_t)ENCODER_DEFAULT_CROSSOVER_COUNTS;
     w->configured = 1u;
 
-    enc_isr_t *e = &s_isr[i];
+    encoder_isr_t *e = &s_isr[i];
     if (cfg->mode == ENCODER_MODE_HALL) {
         e->table = NULL;
     } else {
@@ -236,7 +189,7 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
     }
     hal_irq_state_t st = hal_irq_save();
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
-        enc_isr_t *e = &s_isr[i];
+        encoder_isr_t *e = &s_isr[i];
         e->count = 0u;
         e->edges = 0u;
         e->errors = 0u;
@@ -254,6 +207,8 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
         w->prev_count = 0;
         w->prev_edges = 0u;
         w->prev_errors = 0u;
+        w->ext_count = w->ext_edges = w->ext_errors = 0u;
+        w->seen_count = w->seen_edges = w->seen_errors = 0u;
         w->win_edges = 0u;
         w->win_errors = 0u;
         w->out.delta_um = 0;

@@ -237,15 +237,15 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
         handle_param_set(m);
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_TABLE:
-        mavlink_msg_agnav_calib_table_decode(m, &s_state.calib_table);
-        if (for_us(s_state.calib_table.target_system, s_state.calib_table.target_component)) {
-            s_state.calib_table_pending = true;
+        if (s_cfg.on_calib != 0 && for_us(mavlink_msg_agnav_calib_table_get_target_system(m),
+                                          mavlink_msg_agnav_calib_table_get_target_component(m))) {
+            s_cfg.on_calib(m);
         }
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_REQUEST:
-        mavlink_msg_agnav_calib_request_decode(m, &s_state.calib_request);
-        if (for_us(s_state.calib_request.target_system, s_state.calib_request.target_component)) {
-            s_state.calib_request_pending = true;
+        if (s_cfg.on_calib != 0 && for_us(mavlink_msg_agnav_calib_request_get_target_system(m),
+                                          mavlink_msg_agnav_calib_request_get_target_component(m))) {
+            s_cfg.on_calib(m);
         }
         break;
     default:

@@ -55,10 +55,6 @@ typedef struct {
     bool estop;                 /* as last commanded (MAV_CMD_AGNAV_ESTOP) */
     bool arm_request;           /* one-shot: MAV_CMD_COMPONENT_ARM_DISARM(1) arrived */
     uint8_t behaviour_enable;   /* LINK_ENABLE_* */
-    bool calib_table_pending;   /* one-shot: a table write arrived */
-    mavlink_agnav_calib_table_t calib_table;
-    bool calib_request_pending; /* one-shot: a calibration request arrived */
-    mavlink_agnav_calib_request_t calib_request;
     uint16_t rx_frames;
     uint16_t rx_errors;  /* frames of known messages with a bad CRC */
     uint16_t rx_unknown; /* frames of messages the firmware does not parse (skipped) */
@@ -70,6 +66,9 @@ typedef struct {
     uint8_t compid;
     int16_t manual_max_steer_cdeg; /* full stick deflection */
     int16_t manual_max_speed_mm_s;
+    /* Called from link_poll() with each AGNAV_CALIB_TABLE / AGNAV_CALIB_REQUEST addressed
+     * to this robot (decoded there, so the link keeps no copy: RAM is scarce). May be NULL. */
+    void (*on_calib)(const mavlink_message_t *msg);
 } link_cfg_t;
 
 void link_init(const link_cfg_t *cfg);

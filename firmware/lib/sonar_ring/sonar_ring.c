@@ -19,7 +19,7 @@ _Static_assert(SONAR_RISE_TIMEOUT_US < SONAR_SLOT_US, "rise window longer than s
 /* ---- presets ------------------------------------------------------------ */
 /* ref 002: 12 sensors, 30 deg apart, S0 front, S6 back; radius 225 mm (the
  * SDLG-1 is 0.45 m across). x = 225 cos(b), y = 225 sin(b). */
-static const sonar_cfg_t RING12[12] = {
+static const UNITS_ROM sonar_cfg_t RING12[12] = {
     {0, 225, 0, 4000u},          {3000, 195, 113, 4000u},   {6000, 113, 195, 4000u},
     {9000, 0, 225, 4000u},       {12000, -113, 195, 4000u}, {15000, -195, 113, 4000u},
     {18000, -225, 0, 4000u},     {-15000, -195, -113, 4000u}, {-12000, -113, -195, 4000u},
@@ -28,13 +28,13 @@ static const sonar_cfg_t RING12[12] = {
 const sonar_ring_cfg_t SONAR_RING_12_SDLG = {RING12, 12u};
 
 /* ref 001: six HC-SR04, two per side, one front, one back (ordered CCW). */
-static const sonar_cfg_t RING6[6] = {
+static const UNITS_ROM sonar_cfg_t RING6[6] = {
     {0, 250, 0, 4000u},      {9000, 150, 200, 4000u},   {9000, -150, 200, 4000u},
     {18000, -250, 0, 4000u}, {-9000, -150, -200, 4000u}, {-9000, 150, -200, 4000u},
 };
 const sonar_ring_cfg_t SONAR_RING_6_HCSR04 = {RING6, 6u};
 
-static const sonar_cfg_t RING1[1] = {{0, 200, 0, 4000u}};
+static const UNITS_ROM sonar_cfg_t RING1[1] = {{0, 200, 0, 4000u}};
 const sonar_ring_cfg_t SONAR_RING_1_SRF05 = {RING1, 1u};
 
 /* ---- ISR side ------------------------------------------------------------ */
@@ -74,7 +74,7 @@ void sonar_ring_isr_echo(uint8_t idx, uint8_t level, uint32_t t_us)
 
 /* ---- loop side ------------------------------------------------------------ */
 typedef struct {
-    const sonar_cfg_t *cfg;
+    const UNITS_ROM sonar_cfg_t *cfg;
     uint8_t n;
     uint8_t n_groups;
     uint8_t group_of[SONAR_RING_MAX];

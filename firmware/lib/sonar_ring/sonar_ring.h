@@ -40,6 +40,7 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+#include "units.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -71,7 +72,7 @@ typedef struct {
 } sonar_cfg_t;
 
 typedef struct {
-    const sonar_cfg_t *sensor; /* count entries, ordered around the ring (index = HAL sonar idx) */
+    const UNITS_ROM sonar_cfg_t *sensor; /* in flash on the AVR; count entries, ordered around the ring (index = HAL sonar idx) */
     uint8_t count;             /* 1..SONAR_RING_MAX */
 } sonar_ring_cfg_t;
 

@@ -354,7 +354,7 @@ void test_sonar_ring_runs_across_timer_wrap(void)
 
 void test_sonar_ring_presets_match_reference_layouts(void)
 {
-    const sonar_cfg_t *c = SONAR_RING_12_SDLG.sensor;
+    const UNITS_ROM sonar_cfg_t *c = SONAR_RING_12_SDLG.sensor;
     TEST_ASSERT_EQUAL_UINT8(12u, SONAR_RING_12_SDLG.count);
     TEST_ASSERT_EQUAL_INT16_MESSAGE(0, c[0].bearing_cdeg, "S0 front");
     TEST_ASSERT_EQUAL_INT16_MESSAGE(18000, c[6].bearing_cdeg, "S6 back");

@@ -3,7 +3,7 @@
  * Only this file and hal_avr.c know pin numbers.
  *
  *   link UART         USART0  D0 RX / D1 TX (USB or XBee, 57600 baud)
- *   time base         Timer5, clk/8 = 0.5 us ticks, 16-bit overflow extended in software
+ *   time base         Timer5, clk/64 = 4 us ticks, 16-bit overflow extended in software
  *   steering servo    Timer3 OC3A = PE3 (D5), 50 Hz, 1000-2000 us
  *   ESC / throttle    Timer3 OC3B = PE4 (D2), 50 Hz, 1000-2000 us
  *   H-bridge PWM      Timer4 OC4A = PH3 (D6) left, OC4B = PH4 (D7) right, 8-bit duty
@@ -17,6 +17,6 @@
 #define AGNAV_BOARD_AVR_H
 
 #define BOARD_LINK_UART_BAUD_DEFAULT 57600UL
-#define BOARD_TIMER_TICKS_PER_US 2u
+#define BOARD_SERVO_TICKS_PER_US 2u /* Timer3 at clk/8 */
 
 #endif

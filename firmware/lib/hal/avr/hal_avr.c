@@ -10,7 +10,9 @@
 #include <avr/wdt.h>
 #include <util/delay.h>
 
-/* ---- time: Timer5 free-running at 2 MHz ------------------------------- */
+/* ---- time: Timer5 free-running at clk/64 = 250 kHz (4 us ticks) --------
+ * 4 us resolution (Arduino's micros() has the same): 0.7 mm of sonar range.
+ * Converting ticks to us is then two shifts, cheap enough for interrupts. */
 static volatile uint16_t s_time_overflows;
 static uint8_t s_reset_flags;
 
@@ -39,13 +41,13 @@ static uint32_t ticks_now(void)
     return ((uint32_t)hi << 16) | lo;
 }
 
-uint32_t hal_time_us(void) { return ticks_now() / BOARD_TIMER_TICKS_PER_US; }
+uint32_t hal_time_us(void) { return ticks_now() << 2; }
 uint32_t hal_time_ms(void) { return hal_time_us() / 1000u; }
 
 void hal_delay_us(uint16_t us)
 {
-    uint32_t start = hal_time_us();
-    while ((uint32_t)(hal_time_us() - start) < us) {
+    while (us-- > 0u) {
+        _delay_us(1); /* cycle-counted; the 4 us timer is too coarse for a 10 us pulse */
     }
 }
 
@@ -133,25 +135,37 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
     return n;
 }
 
-/* ---- encoders: PORTK pin-change interrupt ----------------------------- */
-static hal_encoder_edge_fn s_encoder_fn;
+/* ---- encoders: PORTK pin-change interrupt -----------------------------
+ * The ISR runs the encoder module's inline step (encoder_isr.h) for each
+ * encoder whose lines changed, with constant indexes, so there is no call and
+ * the ISR saves only the registers it uses. Budget and measurement:
+ * BENCHMARKS.md (encoder ISR). */
+#include "encoder_isr.h"
 static uint8_t s_encoder_mask;
 static uint8_t s_pink_last;
+
+#define ENCODER_PAIR(now, i) (uint8_t)((((now) >> (2u * (i))) & 1u) << 1 | (((now) >> (2u * (i) + 1u)) & 1u))
 
 ISR(PCINT2_vect)
 {
     uint8_t now = PINK;
     uint8_t changed = (uint8_t)((now ^ s_pink_last) & s_encoder_mask);
     s_pink_last = now;
-    if (changed == 0u || s_encoder_fn == 0) {
+    if (changed == 0u) {
         return;
     }
-    uint32_t t = hal_time_us();
-    for (uint8_t i = 0; i < HAL_ENCODER_MAX; i++) {
-        if (changed & (uint8_t)(3u << (2u * i))) {
-            s_encoder_fn(i, (uint8_t)(((now >> (2u * i)) & 1u) << 1 | ((now >> (2u * i + 1u)) & 1u)), t);
-        }
+    /* hal_time_us() inline: interrupts are already off in here. */
+    uint16_t hi = s_time_overflows;
+    uint16_t lo = TCNT5;
+    if ((TIFR5 & (1u << TOV5)) && lo < 0x8000u) {
+        hi++;
     }
+    /* <<16 is byte moves; a single <<18 would be an 18-step shift loop under -Os. */
+    uint32_t t = (((uint32_t)hi << 16) | lo) << 2;
+    if (changed & 0x03u) encoder_isr_step(&encoder_isr_state[0], ENCODER_PAIR(now, 0u), t);
+    if (changed & 0x0Cu) encoder_isr_step(&encoder_isr_state[1], ENCODER_PAIR(now, 1u), t);
+    if (changed & 0x30u) encoder_isr_step(&encoder_isr_state[2], ENCODER_PAIR(now, 2u), t);
+    if (changed & 0xC0u) encoder_isr_step(&encoder_isr_state[3], ENCODER_PAIR(now, 3u), t);
 }
 
 void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
@@ -163,7 +177,7 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
     DDRK &= (uint8_t)~s_encoder_mask;
     PORTK |= s_encoder_mask; /* pull-ups for open-collector Hall sensors */
     s_pink_last = PINK;
-    s_encoder_fn = fn;
+    (void)fn; /* always encoder_isr_edge on this board, see the ISR */
     PCMSK2 = s_encoder_mask;
     PCICR |= (uint8_t)(1u << PCIE2);
 }
@@ -242,7 +256,7 @@ void hal_servo_write_us(uint8_t channel, uint16_t pulse_us)
     } else if (pulse_us > 2200u) {
         pulse_us = 2200u;
     }
-    uint16_t ticks = (uint16_t)(pulse_us * BOARD_TIMER_TICKS_PER_US);
+    uint16_t ticks = (uint16_t)(pulse_us * BOARD_SERVO_TICKS_PER_US);
     if (channel == HAL_SERVO_STEER) {
         OCR3A = ticks;
     } else if (channel == HAL_SERVO_THROTTLE) {
@@ -296,9 +310,9 @@ hal_reset_cause_t hal_reset_cause(void)
 /* ---- init ------------------------------------------------------------- */
 void hal_init(void)
 {
-    /* Timer5: normal mode, clk/8 -> 2 MHz; overflow extends to 32 bits. */
+    /* Timer5: normal mode, clk/64 -> 4 us ticks; overflow extends to 32 bits. */
     TCCR5A = 0;
-    TCCR5B = (uint8_t)(1u << CS51);
+    TCCR5B = (uint8_t)((1u << CS51) | (1u << CS50));
     TIMSK5 = (uint8_t)(1u << TOIE5);
     /* Timer3: fast PWM mode 14, TOP = ICR3 = 20 ms at 2 MHz, OC3A/OC3B non-inverting. */
     DDRE |= (uint8_t)((1u << PE3) | (1u << PE4));

@@ -35,10 +35,11 @@ if target == "avr":
     mcu_flags = ["-mmcu=$BOARD_MCU"]
     env.Append(
         CFLAGS=COMMON_CFLAGS,
-        CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os"],
+        # -flto lets the encoder hook be inlined into the pin-change ISR (see hal/avr).
+        CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os", "-flto"],
         CPPDEFINES=[("F_CPU", "$BOARD_F_CPU")],
         LINKFLAGS=mcu_flags + [
-            "-Os", "-Wl,--gc-sections",
+            "-Os", "-flto", "-Wl,--gc-sections",
             "-Wl,-Map," + join("$BUILD_DIR", "${PROGNAME}.map"),  # tools/fw_size.py reads it
         ],
         BUILDERS=dict(

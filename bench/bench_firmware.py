@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+"""Firmware benchmarks on the real ATmega2560 build under simavr (16 MHz).
+
+    .venv/bin/python bench/bench_firmware.py [--seconds 4] [--markdown bench/results/firmware.md]
+
+Builds the `megaatmega2560_bench` profile (differential drive, 4 quadrature encoders, all
+behaviour layers on, 12 sonars) and runs it in build/bin/avr_harness with every sonar echoing
+a wall at 0.8 m, 4 encoders stepping at 2 kHz each and a live host (HEARTBEAT + drive setpoint
+at 10 Hz). Prints:
+  - flash and static RAM per module and in total (linker map, tools/fw_size.py);
+  - worst run time of each scheduler task as the firmware itself measured it (NAMED_VALUE_INT
+    "T_<task>", us, 4 us resolution) and the control tick in cycles;
+  - per-function cycles from the non-LTO `megaatmega2560_profile` build (where the time goes);
+  - encoder ISR cycles (PCINT2 vector entry to return);
+  - the highest single-encoder edge rate with zero lost counts (sweep);
+  - sonar ring update rate; simavr speed (simulated / wall-clock time).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "host"))
+
+from agnav_host.protocol import dialect  # noqa: E402
+
+HARNESS = REPO / "build" / "bin" / "avr_harness"
+F_CPU = 16_000_000
+TARGETS = {"flash_B": 48 * 1024, "ram_B": 3 * 1024, "tick_us": 1000, "isr_cycles": 60,
+           "edge_rate_hz": 40_000, "ring_hz": 10.0}
+
+
+def pio_env() -> dict:
+    return dict(os.environ, PLATFORMIO_CORE_DIR=str(REPO / ".pio-core"), PLATFORMIO_DISABLE_UPGRADE_CHECK="true")
+
+
+def build(env: str) -> Path:
+    subprocess.run([str(REPO / ".venv" / "bin" / "pio"), "run", "-s", "-e", env], cwd=REPO, env=pio_env(),
+                   check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(["make", "-s", "build/bin/avr_harness"], cwd=REPO, check=True)
+    return REPO / ".pio" / "build" / env / "firmware.elf"
+
+
+def host_frames_hex() -> str:
+    d = dialect()
+    m = d.MAVLink(None, srcSystem=255, srcComponent=190)
+    b = d.MAVLink_heartbeat_message(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3).pack(m)
+    b += d.MAVLink_agnav_drive_setpoint_message(1, 1, 500, 600, 0, 0, 0, 1).pack(m)
+    return b.hex()
+
+
+def run(elf: Path, seconds: float, extra: list[str]) -> tuple[list, str, float]:
+    t0 = time.perf_counter()
+    out = subprocess.run([str(HARNESS), "--seconds", str(seconds), *extra, str(elf)], capture_output=True, timeout=600)
+    wall = time.perf_counter() - t0
+    mav = dialect().MAVLink(None)
+    msgs = mav.parse_buffer(out.stdout) or []
+    return msgs, out.stderr.decode(), wall
+
+
+def symbol_addrs(elf: Path, names: list[str]) -> list[str]:
+    nm = subprocess.run(["avr-nm", str(elf)], capture_output=True, text=True, check=True).stdout
+    args = []
+    for name in names:
+        m = re.search(rf"^([0-9a-f]+) [Tt] {re.escape(name)}$", nm, re.M)
+        if m:
+            args += ["--profile", f"{name}:0x{m.group(1)}"]
+    return args
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds of the main run")
+    ap.add_argument("--markdown", type=Path, help="also write the results as a markdown table here")
+    args = ap.parse_args(argv)
+    lines: list[str] = []
+
+    def say(text: str = "") -> None:
+        print(text, flush=True)
+        lines.append(text)
+
+    elf = build("megaatmega2560_bench")
+    size = subprocess.run([sys.executable, str(REPO / "tools" / "fw_size.py"), "--env",
+                           "megaatmega2560_bench"], capture_output=True, text=True, check=True).stdout
+    say("## Flash and static RAM (ATmega2560, benchmark profile, LTO)")
+    say("```")
+    say(size.rstrip())
+    say("```")
+
+    stim = ["--enc-count", "4", "--enc-hz", "2000", "--sonar-mm", "800",
+            "--uart-inject-hex", host_frames_hex(), "--uart-inject-hz", "10", "--isr-stats"]
+    msgs, err, wall = run(elf, args.seconds, stim)
+    worst = {}
+    rings = []
+    for m in msgs:
+        if m.get_type() == "NAMED_VALUE_INT" and m.name.startswith("T_"):
+            worst[m.name[2:]] = max(worst.get(m.name[2:], 0), m.value)
+        elif m.get_type() == "AGNAV_SONAR_RING":
+            rings.append((m.time_boot_ms, m.seq))
+    say("")
+    say(f"## Scheduler tasks, worst run time measured by the firmware ({args.seconds:.0f} simulated s, 4 encoders at 2 kHz, 12 sonars, live host)")
+    say("| task | worst us | worst cycles |")
+    say("|---|---:|---:|")
+    for name, us in worst.items():
+        say(f"| {name} | {us} | {us * F_CPU // 1_000_000} |")
+    tick = worst.get("control", 0)
+    say(f"control tick worst {tick} us = {tick * 16} cycles (target <= {TARGETS['tick_us']} us): "
+        f"{'OK' if tick <= TARGETS['tick_us'] else 'OVER'}")
+    m = re.search(r"encoder_isr_cycles n=(\d+) min=(\d+) mean=([\d.]+) max=(\d+)", err)
+    if m:
+        say(f"encoder ISR cycles: min {m.group(2)}, mean {m.group(3)}, max {m.group(4)} over {m.group(1)} interrupts "
+            f"(target <= {TARGETS['isr_cycles']}): {'OK' if int(m.group(4)) <= TARGETS['isr_cycles'] else 'OVER'}")
+    if len(rings) >= 2:
+        (t0, s0), (t1, s1) = rings[1], rings[-1]
+        hz = (s1 - s0) / ((t1 - t0) / 1000.0)
+        say(f"sonar ring: {hz:.2f} full 12-sensor rings per second (target >= {TARGETS['ring_hz']}): "
+            f"{'OK' if hz >= TARGETS['ring_hz'] else 'UNDER'}")
+    say(f"simavr speed: {args.seconds / wall:.2f}x real time ({args.seconds:.1f} simulated s in {wall:.2f} s wall)")
+
+    prof_elf = build("megaatmega2560_profile")
+    names = ["task_control", "encoder_update", "odom_update_diff", "behaviour_step", "drive_apply",
+             "task_telemetry_50hz", "task_telemetry_10hz", "task_link", "sonar_ring_step", "link_send"]
+    _, perr, _ = run(prof_elf, min(args.seconds, 3.0), stim + symbol_addrs(prof_elf, names))
+    say("")
+    say("## Where the time goes (non-LTO build, cycles per call)")
+    say("| function | calls | mean | max |")
+    say("|---|---:|---:|---:|")
+    for pm in re.finditer(r"profile (\S+) n=(\d+) min=(\d+) mean=([\d.]+) max=(\d+)", perr):
+        say(f"| {pm.group(1)} | {pm.group(2)} | {float(pm.group(4)):.0f} | {pm.group(5)} |")
+
+    say("")
+    say("## Highest single-encoder edge rate with zero lost counts (2 simulated s each)")
+    say("| edges/s | counted | expected | errors | lost |")
+    say("|---:|---:|---:|---:|---|")
+    best = 0
+    for rate in (10_000, 20_000, 30_000, 40_000, 50_000, 60_000):
+        msgs, _, _ = run(elf, 2.0, ["--enc-count", "1", "--enc-hz", str(rate), "--sonar-mm", "800",
+                                    "--uart-inject-hex", host_frames_hex(), "--uart-inject-hz", "10"])
+        enc = [x for x in msgs if x.get_type() == "AGNAV_ENCODER_STATUS"]
+        if not enc:
+            say(f"| {rate} | - | - | - | no telemetry |")
+            continue
+        last = enc[-1]
+        # edges start 0.5 s after boot; the snapshot was taken at last.time_boot_ms
+        expected = int((last.time_boot_ms / 1000.0 - 0.5) * rate)
+        counted = last.count[0]
+        lost = last.errors[0] > 0 or abs(counted - expected) > rate * 0.02 + 2
+        say(f"| {rate} | {counted} | ~{expected} | {last.errors[0]} | {'yes' if lost else 'no'} |")
+        if not lost:
+            best = rate
+    say(f"highest rate without lost counts: {best} edges/s (target >= {TARGETS['edge_rate_hz']}): "
+        f"{'OK' if best >= TARGETS['edge_rate_hz'] else 'UNDER'}")
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text("Command: `.venv/bin/python bench/bench_firmware.py --markdown bench/results/firmware.md`\n\n"
+                                 + "\n".join(lines) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
