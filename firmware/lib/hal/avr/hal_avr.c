@@ -135,6 +135,18 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
     return n;
 }
 
+/* hal_time_us() for interrupt handlers: interrupts are already off there.
+ * <<16 is byte moves; a single <<18 would be an 18-step shift loop under -Os. */
+static inline __attribute__((always_inline)) uint32_t isr_time_us(void)
+{
+    uint16_t hi = s_time_overflows;
+    uint16_t lo = TCNT5;
+    if ((TIFR5 & (1u << TOV5)) && lo < 0x8000u) {
+        hi++; /* overflow pending, not yet serviced */
+    }
+    return (((uint32_t)hi << 16) | lo) << 2;
+}
+
 /* ---- encoders: PORTK pin-change interrupt -----------------------------
  * The ISR runs the encoder module's inline step (encoder_isr.h) for each
  * encoder whose lines changed, with constant indexes, so there is no call and
@@ -154,14 +166,7 @@ ISR(PCINT2_vect)
     if (changed == 0u) {
         return;
     }
-    /* hal_time_us() inline: interrupts are already off in here. */
-    uint16_t hi = s_time_overflows;
-    uint16_t lo = TCNT5;
-    if ((TIFR5 & (1u << TOV5)) && lo < 0x8000u) {
-        hi++;
-    }
-    /* <<16 is byte moves; a single <<18 would be an 18-step shift loop under -Os. */
-    uint32_t t = (((uint32_t)hi << 16) | lo) << 2;
+    uint32_t t = isr_time_us();
     if (changed & 0x03u) encoder_isr_step(&encoder_isr_state[0], ENCODER_PAIR(now, 0u), t);
     if (changed & 0x0Cu) encoder_isr_step(&encoder_isr_state[1], ENCODER_PAIR(now, 1u), t);
     if (changed & 0x30u) encoder_isr_step(&encoder_isr_state[2], ENCODER_PAIR(now, 2u), t);
@@ -182,32 +187,44 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
     PCICR |= (uint8_t)(1u << PCIE2);
 }
 
-/* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 --- */
-static hal_echo_edge_fn s_echo_fn;
+/* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 ---
+ * Like the encoders, the echo ISRs call the sonar ring's hook directly (LTO
+ * inlines it) and read the time inline: a group's echoes can end together. */
+#include "sonar_ring.h"
+static bool s_echo_on;
 static uint8_t s_sonar_count;
 static uint8_t s_pinb_last;
 
+/* A group of up to four sonars can change its echo lines in the same
+ * microsecond, which makes this the longest ISR; the encoders must not wait
+ * for it (a quadrature edge missed is a count lost). So it samples the lines
+ * and the time, masks only itself, and lets other interrupts in while it
+ * hands the edges to the sonar ring. */
 ISR(PCINT0_vect)
 {
     uint8_t now = PINB;
+    uint32_t t = isr_time_us();
     uint8_t changed = (uint8_t)(now ^ s_pinb_last);
     s_pinb_last = now;
-    if (s_echo_fn == 0) {
+    if (!s_echo_on || changed == 0u) {
         return;
     }
-    uint32_t t = hal_time_us();
+    PCICR &= (uint8_t)~(1u << PCIE0);
+    sei();
     for (uint8_t i = 0; i < 8u && i < s_sonar_count; i++) {
         if (changed & (uint8_t)(1u << i)) {
-            s_echo_fn(i, (uint8_t)((now >> i) & 1u), t);
+            sonar_ring_isr_echo(i, (uint8_t)((now >> i) & 1u), t);
         }
     }
+    cli();
+    PCICR |= (uint8_t)(1u << PCIE0);
 }
 
 #define ECHO_EXT_ISR(vect, bit, idx)                                            \
     ISR(vect)                                                                   \
     {                                                                           \
-        if (s_echo_fn != 0) {                                                   \
-            s_echo_fn((idx), (uint8_t)((PIND >> (bit)) & 1u), hal_time_us());   \
+        if (s_echo_on) {                                                        \
+            sonar_ring_isr_echo((idx), (uint8_t)((PIND >> (bit)) & 1u), isr_time_us()); \
         }                                                                       \
     }
 ECHO_EXT_ISR(INT0_vect, 0, 8u)
@@ -221,7 +238,7 @@ void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
         count = HAL_SONAR_MAX;
     }
     s_sonar_count = count;
-    s_echo_fn = fn;
+    s_echo_on = fn != 0; /* always sonar_ring_isr_echo on this board, see the ISRs */
     uint8_t low = count >= 8u ? 0xFFu : (uint8_t)((1u << count) - 1u);
     uint8_t high = count > 8u ? (uint8_t)((1u << (count - 8u)) - 1u) : 0u;
     DDRA |= low;           /* triggers 0..7 */
