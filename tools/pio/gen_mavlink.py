@@ -16,6 +16,9 @@ subprocess.run(
 include = os.path.join(out_dir, "c")
 # Library environments are cloned from this one later, so they inherit the flag.
 env.Append(CCFLAGS=["-isystem", include])  # noqa: F821  (system: its warnings are not ours)
+# Also on CPPPATH so SCons' scanner sees the generated headers and rebuilds what includes them
+# when they change (gcc ignores -I for a directory that is also given with -isystem).
+env.Append(CPPPATH=[include])  # noqa: F821
 # The shared byte vectors as Unity tests (firmware/test/test_protocol_vectors).
 subprocess.run(
     [env.subst("$PYTHONEXE"), os.path.join(project_dir, "protocol", "vectors_to_c.py"),  # noqa: F821
