@@ -1,0 +1,64 @@
+"""The ARM (STM32F405) build boots under QEMU netduinoplus2, sends heartbeats on USART1 and
+answers a command: the same firmware wiring as the AVR, on the second target."""
+import os
+import selectors
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from agnav_host.protocol import dialect
+
+REPO = Path(__file__).resolve().parents[2]
+ELF = REPO / ".pio" / "build" / "stm32f405" / "firmware.elf"
+
+
+@pytest.fixture(scope="module")
+def arm_firmware() -> Path:
+    env = dict(os.environ, PLATFORMIO_CORE_DIR=str(REPO / ".pio-core"), PLATFORMIO_DISABLE_UPGRADE_CHECK="true")
+    subprocess.run([str(REPO / ".venv" / "bin" / "pio"), "run", "-s", "-e", "stm32f405"], cwd=REPO, env=env,
+                   check=True, stdout=subprocess.DEVNULL)
+    return ELF
+
+
+def test_arm_firmware_boots_heartbeats_and_acknowledges_a_command(arm_firmware):
+    d = dialect()
+    host = d.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = d.MAVLink(None)
+    cmd = d.MAVLink_command_long_message(1, 1, d.MAV_CMD_AGNAV_ESTOP, 0, 1, 0, 0, 0, 0, 0, 0).pack(host)
+    proc = subprocess.Popen(
+        ["qemu-system-arm", "-M", "netduinoplus2", "-display", "none", "-monitor", "none", "-serial", "stdio",
+         "-kernel", str(arm_firmware)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    seen: dict[str, list] = {}
+    sent = False
+    deadline = time.monotonic() + 20.0
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    try:
+        while time.monotonic() < deadline:
+            if not sel.select(timeout=0.2):
+                continue
+            chunk = os.read(proc.stdout.fileno(), 4096)
+            if not chunk:
+                break
+            for msg in parser.parse_buffer(chunk) or []:
+                seen.setdefault(msg.get_type(), []).append(msg)
+            if not sent and seen.get("HEARTBEAT"):
+                proc.stdin.write(cmd)
+                proc.stdin.flush()
+                sent = True
+            if len(seen.get("HEARTBEAT", [])) >= 2 and seen.get("COMMAND_ACK"):
+                break
+    finally:
+        proc.kill()
+        proc.wait(timeout=5)
+    assert len(seen.get("HEARTBEAT", [])) >= 2, f"heartbeats seen: {len(seen.get('HEARTBEAT', []))}"
+    hb = seen["HEARTBEAT"][0]
+    assert hb.type == d.MAV_TYPE_GROUND_ROVER
+    acks = seen.get("COMMAND_ACK", [])
+    assert acks, f"no COMMAND_ACK; messages seen: {sorted(seen)}"
+    assert acks[0].command == d.MAV_CMD_AGNAV_ESTOP and acks[0].result == d.MAV_RESULT_ACCEPTED
+    status = seen.get("AGNAV_BEHAVIOUR_STATUS", [])
+    assert status and status[-1].failsafe_flags & d.AGNAV_FAILSAFE_ESTOP, "e-stop not reflected in the status"
