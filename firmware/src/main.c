@@ -163,6 +163,18 @@ static void task_sonar(void)
     }
 }
 
+/* A fitted sensor that answered nothing (missing, unplugged, stuck line) leaves the robot
+ * blind on that side: the failsafe stops it (SONAR_COUNT = 0 for a robot without sonars). */
+static bool sonar_any_fault(const sonar_frame_t *f)
+{
+    for (uint8_t i = 0; i < f->count && i < SONAR_RING_MAX; i++) {
+        if (f->status[i] == SONAR_FAULT) {
+            return true;
+        }
+    }
+    return false;
+}
+
 static void update_odometry(void)
 {
     encoder_update(hal_time_us());
@@ -214,7 +226,7 @@ static void task_control(void)
     in->manual_valid = ls->manual.valid;
     in->estop = ls->estop;
     in->encoder_fault = encoder_faults() != 0u;
-    in->sonar_fault = s_ring != 0 && (uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS;
+    in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || sonar_any_fault(&in->sonar));
     in->reset_was_watchdog = s_watchdog_boot;
     in->calib_defaulted = (calib_health() & CALIB_DEFAULTED) != 0u;
     in->x_mm = pose.x_mm;
