@@ -18,7 +18,7 @@ APT_PACKAGES := gcc-avr avr-libc avrdude simavr libsimavr-dev libelf-dev \
                 gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm \
                 binutils-avr pkg-config
 
-.PHONY: help setup apt venv tools demo test test-host test-firmware size bench clean
+.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil clean
 
 help:
 	@echo "make demo   - install what is missing, run the default mission (output in out/demo)"
@@ -52,10 +52,17 @@ build/bin/avr_harness: hil/simavr/avr_harness.c
 	@mkdir -p build/bin
 	cc -O2 -Wall -Wextra -o $@ $< -lsimavr -lelf
 
-demo: setup
-	$(VENV)/bin/agnav sim --out out/demo
+# The default mission: the real firmware (native SIL) in lock-step with the world simulator,
+# driven by the default host planner over the modelled 57600-baud radio link.
+demo: setup sil
+	$(VENV)/bin/agnav sim --firmware sil --out out/demo
 
-test: setup
+# Native software-in-the-loop library (the firmware built against the simulated HAL).
+sil: build/sil/libagnav_sil.so
+build/sil/libagnav_sil.so: firmware/src/main.c $(wildcard firmware/lib/*/*.[ch] firmware/lib/hal/sim/*) hil/sil/sil_api.c hil/sil/sil_api.h protocol/agnav.xml | venv
+	$(PY) -m agnav_host.sil.build
+
+test: setup sil
 	@bash tools/run_all_tests.sh
 
 test-host: setup
@@ -63,6 +70,12 @@ test-host: setup
 
 test-firmware: setup
 	$(PIO) test -e native
+
+test-sil: setup sil
+	$(VENV)/bin/pytest -q hil/tests/test_sil_api.py hil/tests/test_sil_scenarios.py
+
+bench-sil: setup sil
+	$(PY) bench/bench_sil.py
 
 size: setup
 	$(PIO) run -s -e megaatmega2560

@@ -4,7 +4,7 @@
  * Every module lives in firmware/lib/<module>; this file connects them:
  *   link (MAVLink in) -> behaviour inputs; encoders -> odometry; sonar ring ->
  *   behaviour; behaviour out -> drive (calibration tables -> PWM); telemetry out.
- * EEPROM map: 0x0100 calibration record (calib, 212 B), 0x0200 parameters.
+ * EEPROM map: see params.h (calibration record, then parameters).
  */
 #include <string.h>
 
@@ -20,7 +20,6 @@
 #include "sched.h"
 #include "sonar_ring.h"
 
-#define EEPROM_PARAMS_ADDR 0x0200u
 #define WATCHDOG_TIMEOUT_MS 250u
 #define SONAR_STALE_MS 500u /* no new ring for this long -> sonar fault */
 
@@ -353,7 +352,7 @@ void agnav_setup(void)
     s_watchdog_boot = hal_reset_cause() == HAL_RESET_WATCHDOG;
     defaults();
     params_init(PARAMS, (uint16_t)PARAM_COUNT);
-    bool params_ok = params_load(EEPROM_PARAMS_ADDR) == PARAMS_OK;
+    bool params_ok = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK;
 
     calib_init();
     calib_load();
@@ -372,7 +371,7 @@ void agnav_setup(void)
         sonar_ring_init(s_ring);
     }
     behaviour_init(&p_bhv, s_ring);
-    drive_cfg_t dc = {p_drive_kind, p_track_mm};
+    drive_cfg_t dc = {p_drive_kind, p_track_mm, 0u, 0u};
     drive_init(&dc);
 
     link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib};

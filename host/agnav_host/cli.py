@@ -84,7 +84,9 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 COMMAND_MODULES: tuple[str, ...] = (
     "agnav_host.perception.commands",
     "agnav_host.planning.commands",
+    "agnav_host.planning.timed_commands",
     "agnav_host.link.commands",
+    "agnav_host.sil.commands",
 )
 
 
@@ -138,9 +140,9 @@ def _cmd_scenarios(ns: argparse.Namespace) -> int:
 
 
 def _planner_names() -> list[str]:
-    from .sim.controller import STANDINS
+    from .sim.runner import planner_names
 
-    return sorted(STANDINS)
+    return planner_names()
 
 
 @subcommand(
@@ -148,7 +150,7 @@ def _planner_names() -> list[str]:
     help="run a simulator scenario and write summary.json and trajectory.csv",
     args=[
         (("scenario",), {"nargs": "?", "default": None, "help": "built-in name or .toml path (default: the default scenario)"}),
-        (("--planner",), {"default": "goal_seek", "help": "controller by name (default goal_seek)"}),
+        (("--planner",), {"default": "him", "help": "planner by name (default him; see agnav planners; goal_seek = the stand-in)"}),
         (("--seed",), {"type": int, "default": 0, "help": "random seed (default 0)"}),
         (("--duration",), {"type": float, "default": None, "help": "simulated seconds (default: the scenario's)"}),
         (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,HDG_DEG]",
@@ -156,6 +158,10 @@ def _planner_names() -> list[str]:
         (("--out",), {"required": True, "help": "output directory"}),
         (("--no-plot",), {"action": "store_true", "help": "skip the PNG even if matplotlib is present"}),
         (("--quiet",), {"action": "store_true", "help": "no progress on stderr"}),
+        (("--firmware",), {"choices": ["ideal", "sil"], "default": "ideal",
+                           "help": "ideal: stand-in controller drives the model directly (default); sil: the real "
+                                   "firmware (native SIL) between the host planner and the robot, with the radio link "
+                                   "model; also writes link.tlog and firmware.csv"}),
     ],
     negative_ok=["--goal"],
 )
@@ -164,8 +170,9 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     from .sim.scenario import ScenarioError, load_scenario
     from .types import Goal
 
-    if ns.planner not in _planner_names():
-        print(f"agnav sim: unknown planner {ns.planner!r}; known: {', '.join(_planner_names())}", file=sys.stderr)
+    names = _planner_names()
+    if ns.planner not in names and ns.planner.replace("_", "-") not in names:
+        print(f"agnav sim: unknown planner {ns.planner!r}; known: {', '.join(names)}", file=sys.stderr)
         return 2
     try:
         sc = load_scenario(ns.scenario)
@@ -184,10 +191,19 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
             last[0] = pct
             print(f"\r[{sc.name}] t={t:6.1f}/{total:.0f} s  {pct:3d}%", end="", file=sys.stderr, flush=True)
 
-    result = run_scenario(sc, ns.planner, ns.seed, ns.duration, goal, None if ns.quiet else progress)
-    if not ns.quiet:
-        print(file=sys.stderr)
-    paths = write_outputs(result, ns.out, plot=not ns.no_plot)
+    if getattr(ns, "firmware", "ideal") == "sil":
+        from .sil.session import run_sil_scenario, write_sil_outputs
+
+        sil = run_sil_scenario(sc, ns.planner, ns.seed, ns.duration, goal, progress=None if ns.quiet else progress)
+        result = sil.run
+        if not ns.quiet:
+            print(file=sys.stderr)
+        paths = write_sil_outputs(sil, ns.out, plot=not ns.no_plot)
+    else:
+        result = run_scenario(sc, ns.planner, ns.seed, ns.duration, goal, None if ns.quiet else progress)
+        if not ns.quiet:
+            print(file=sys.stderr)
+        paths = write_outputs(result, ns.out, plot=not ns.no_plot)
     m = result.metrics
     print(f"{sc.name}: {result.end_reason}, success={m.success}, time={m.time_s:.2f} s, path={m.path_length_m:.2f} m")
     for p in paths:

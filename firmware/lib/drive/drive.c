@@ -32,6 +32,12 @@ void drive_init(const drive_cfg_t *cfg)
     if (s_cfg.track_mm == 0u) {
         s_cfg.track_mm = 191u;
     }
+    if (s_cfg.spin_mm_s == 0u) {
+        s_cfg.spin_mm_s = 300u;
+    }
+    if (s_cfg.spin_below_mm_s == 0u) {
+        s_cfg.spin_below_mm_s = 100u;
+    }
     drive_stop();
 }
 
@@ -63,6 +69,11 @@ void drive_apply(int16_t steer_cdeg, int16_t speed_mm_s)
     int32_t phi3_q12 = (((phi_q12 * phi_q12) >> 12) * phi_q12) >> 12;
     int32_t tan_q12 = phi_q12 + ((phi3_q12 * 21845L) >> 16);        /* tan x ~ x + x^3/3, < 1.5 % to 30 deg */
     int32_t half = ((int32_t)speed_mm_s * tan_q12) >> 13;           /* v tan(phi) / 2 */
+    int32_t mag = speed_mm_s < 0 ? -(int32_t)speed_mm_s : speed_mm_s;
+    if (mag < (int32_t)s_cfg.spin_below_mm_s) {
+        /* Spin on the spot: steer / 4500 cdeg * spin_mm_s; 1/4500 ~ 233 / 2^20. */
+        half = ((int32_t)steer_cdeg * (int32_t)s_cfg.spin_mm_s * 233L) >> 20;
+    }
     int32_t l = (int32_t)speed_mm_s - half;
     int32_t r = (int32_t)speed_mm_s + half;
     s_out.left_mm_s = (int16_t)(l > 32767 ? 32767 : (l < -32767 ? -32767 : l));

@@ -11,7 +11,10 @@
  * Ackermann: steering table for the servo, speed table for the ESC.
  * Differential: the steering angle is turned into a yaw rate as if the robot
  * were an Ackermann car of wheelbase track_mm (omega = v tan(phi) / track), and
- * each side's speed goes through that side's speed table.
+ * each side's speed goes through that side's speed table. Below spin_below_mm_s
+ * (where an arc would need a speed inside the motors' dead band) the robot
+ * turns on the spot instead: the wheels get -/+ steer / 45 deg * spin_mm_s, so a
+ * positive (left) steer at standstill spins it counter-clockwise.
  */
 #ifndef AGNAV_DRIVE_H
 #define AGNAV_DRIVE_H
@@ -22,8 +25,10 @@
 typedef enum { DRIVE_ACKERMANN = 0, DRIVE_DIFFERENTIAL = 1 } drive_kind_t;
 
 typedef struct {
-    uint8_t kind;      /* drive_kind_t */
-    uint16_t track_mm; /* differential: wheel separation */
+    uint8_t kind;             /* drive_kind_t */
+    uint16_t track_mm;        /* differential: wheel separation; 0 = 191 */
+    uint16_t spin_mm_s;       /* differential: wheel speed of a full (45 deg) spin command; 0 = 300 */
+    uint16_t spin_below_mm_s; /* differential: |speed| below which steering spins on the spot; 0 = 100 */
 } drive_cfg_t;
 
 /* What went to the actuators last (for telemetry and tests). */

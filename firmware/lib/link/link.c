@@ -117,8 +117,15 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
                                              (c.param3 > 0.5f ? LINK_ENABLE_AVOID : 0u));
         break;
     case MAV_CMD_PREFLIGHT_STORAGE:
-        /* param1: 0 read, 1 write parameters (EEPROM address chosen by main). */
-        result = MAV_RESULT_UNSUPPORTED; /* main overrides through params storage hooks */
+        /* param1: 0 read parameters back from EEPROM, 1 write them (boot-time ones such as
+         * DRIVE_KIND take effect at the next boot). Other param1 values: unsupported. */
+        if (c.param1 > 0.5f && c.param1 < 1.5f) {
+            result = params_save(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
+        } else if (c.param1 < 0.5f && c.param1 > -0.5f) {
+            result = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
+        } else {
+            result = MAV_RESULT_UNSUPPORTED;
+        }
         break;
     default:
         result = MAV_RESULT_UNSUPPORTED;

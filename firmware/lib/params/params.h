@@ -20,6 +20,10 @@
 
 #include "units.h"
 
+/* EEPROM map of the firmware: 0x0100 calibration record (calib, CALIB_EEPROM_ADDR, 212 B),
+ * PARAMS_EEPROM_ADDR the parameter record (4 B header + 4 B per parameter + CRC). */
+#define PARAMS_EEPROM_ADDR 0x0200u
+
 #define PARAMS_NAME_LEN 16u /* MAVLink param_id length; names shorter are NUL-terminated */
 
 typedef enum { PARAM_U8 = 0, PARAM_U16 = 1, PARAM_I16 = 2, PARAM_I32 = 3 } param_type_t;

@@ -8,7 +8,7 @@
 
 static void ackermann(void)
 {
-    drive_cfg_t c = {DRIVE_ACKERMANN, 0u};
+    drive_cfg_t c = {DRIVE_ACKERMANN, 0u, 0u, 0u};
     drive_init(&c);
 }
 
@@ -72,7 +72,7 @@ static void test_drive_reverse_speed_sets_direction_and_lower_pulse(void)
 
 static void test_drive_differential_turn_left_slows_left_side(void)
 {
-    drive_cfg_t c = {DRIVE_DIFFERENTIAL, 400u};
+    drive_cfg_t c = {DRIVE_DIFFERENTIAL, 400u, 0u, 0u};
     drive_init(&c);
     drive_apply(1500, 1000); /* 15 deg left */
     const drive_output_t *o = drive_output();
@@ -83,6 +83,22 @@ static void test_drive_differential_turn_left_slows_left_side(void)
     TEST_ASSERT_EQUAL_UINT8(o->left_duty, sim_pwm_duty(0u));
     TEST_ASSERT_TRUE(sim_pwm_duty(1u) > sim_pwm_duty(0u));
     TEST_ASSERT_FALSE(sim_pwm_reverse(0u));
+}
+
+static void test_drive_differential_spins_on_the_spot_when_nearly_stopped(void)
+{
+    drive_cfg_t c = {DRIVE_DIFFERENTIAL, 400u, 300u, 100u};
+    drive_init(&c);
+    drive_apply(4500, 0); /* full left at standstill: counter-clockwise spin */
+    const drive_output_t *o = drive_output();
+    TEST_ASSERT_INT16_WITHIN(2, -300, o->left_mm_s);
+    TEST_ASSERT_INT16_WITHIN(2, 300, o->right_mm_s);
+    TEST_ASSERT_TRUE(sim_pwm_reverse(0u));
+    TEST_ASSERT_FALSE(sim_pwm_reverse(1u));
+    TEST_ASSERT_EQUAL_UINT8(calib_pwm_from_value(CALIB_SPEED_RIGHT, 300), sim_pwm_duty(1u));
+    drive_apply(-2250, 50); /* half right while crawling: still a spin, clockwise */
+    TEST_ASSERT_INT16_WITHIN(2, 50 + 150, o->left_mm_s);
+    TEST_ASSERT_INT16_WITHIN(2, 50 - 150, o->right_mm_s);
 }
 
 static void test_drive_raw_mode_passes_table_units_through(void)
@@ -102,6 +118,7 @@ int main(void)
     RUN_TEST(test_drive_speed_in_dead_band_gives_neutral_throttle);
     RUN_TEST(test_drive_reverse_speed_sets_direction_and_lower_pulse);
     RUN_TEST(test_drive_differential_turn_left_slows_left_side);
+    RUN_TEST(test_drive_differential_spins_on_the_spot_when_nearly_stopped);
     RUN_TEST(test_drive_raw_mode_passes_table_units_through);
     return UNITY_END();
 }

@@ -9,19 +9,25 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+import time
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ..types import DriveCommand, Goal, Observation
-from .controller import GoalSeekParams, make_standin
+from typing import TYPE_CHECKING
+
+from ..types import DriveCommand, Goal, Observation, SonarFrame
+
+if TYPE_CHECKING:
+    from ..planning.base import RobotSpec
+from .controller import STANDINS, Controller, GoalSeekParams, make_standin
 from .metrics import RunMetrics
 from .robots import AckermannParams
 from .scenario import Scenario
 
-__all__ = ["RunResult", "run_scenario", "write_outputs", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
+__all__ = ["RunResult", "run_scenario", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
 
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
 HOLE_FALL_DEPTH_M = 0.1  # the robot's centre over ground this far below nominal counts as fallen in
@@ -37,6 +43,66 @@ class RunResult:
     metrics: RunMetrics
     trajectory: np.ndarray
     end_reason: str  # "arrived", "collision", "fell_in_hole", "timeout"
+    step_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time of each planner step, s
+
+
+def planner_names() -> list[str]:
+    """Every name ``run_scenario`` accepts: the stand-ins and the host planners of agnav_host.planning."""
+    from ..planning.registry import planner_names as host_planners
+
+    return sorted(STANDINS) + host_planners()
+
+
+def robot_spec(sc: Scenario) -> "RobotSpec":
+    """The planners' view of the scenario's robot and sensors (agnav_host.planning.RobotSpec)."""
+    from ..planning.base import RobotSpec
+
+    p = sc.robot_params
+    dt = 1.0 / sc.control_hz
+    kw: dict[str, float | int | str] = {}
+    if sc.sonar is not None:
+        s = sc.sonar.spec
+        kw = dict(sonar_count=s.count, sonar_spacing_rad=s.spacing_rad, sonar_mount_radius_m=s.mount_radius_m,
+                  sonar_max_range_m=s.max_range_m)
+    if isinstance(p, AckermannParams):
+        vmin = p.true_speed.pos_value[0] if p.true_speed is not None and p.true_speed.pos_value else 0.0
+        return RobotSpec(kinematics="ackermann", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s, min_speed_m_s=vmin,
+                         max_accel_m_s2=p.max_accel_m_s2, track_m=p.track_m, wheelbase_m=p.wheelbase_m,
+                         max_steer_rad=p.max_steer_rad, footprint_offset_m=0.5 * p.wheelbase_m, control_dt_s=dt, **kw)  # type: ignore[arg-type]
+    return RobotSpec(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s,
+                     max_accel_m_s2=p.max_accel_m_s2, track_m=p.track_m, control_dt_s=dt, **kw)  # type: ignore[arg-type]
+
+
+def _make_controller(sc: Scenario, planner: str) -> Controller:
+    if planner in STANDINS:
+        return make_standin(planner, _standin_params(sc))
+    from ..planning.registry import canonical_name, make_planner
+
+    name = canonical_name(planner)  # UnknownPlanner (a ValueError) lists the names
+    table = sc.meta.get("planner_params", {})
+    params = table.get(name) if isinstance(table, dict) else None
+    return make_planner(name, robot_spec(sc), dict(params) if isinstance(params, dict) else None)
+
+
+class _SonarSlots:
+    """Fires the ring in three slots of non-adjacent sensors (0, 3, 6, 9 / 1, 4, 7, 10 / ...), one
+    slot per control step, as the firmware's scheduler does, and keeps the newest range of each."""
+
+    def __init__(self, sc: Scenario) -> None:
+        assert sc.sonar is not None
+        self.ring = sc.sonar
+        n = self.ring.spec.count
+        self.slots = [list(range(k, n, 3)) for k in range(min(3, n))]
+        self.k = 0
+        self.us = np.full(n, np.nan)
+
+    def frame(self, world: object, pose: object, t: float, rng: np.random.Generator) -> SonarFrame:
+        first = self.k == 0
+        for slot in (self.slots if first else [self.slots[self.k % len(self.slots)]]):
+            self.us[slot] = self.ring.echo_us(world, pose, slot, t, rng)  # type: ignore[arg-type]
+        self.k += 1
+        us = self.us.copy()
+        return SonarFrame(t, np.ones(len(us), dtype=bool), us, us * 1e-6 * self.ring.spec.speed_of_sound_m_s / 2.0)
 
 
 def _standin_params(sc: Scenario) -> GoalSeekParams:
@@ -57,7 +123,8 @@ def run_scenario(
     goal: Goal | None = None,
     progress: Callable[[float, float], None] | None = None,
 ) -> RunResult:
-    """Simulate ``sc`` with the named stand-in controller.
+    """Simulate ``sc`` with the named controller: a stand-in (``goal_seek``) or a host planner from
+    agnav_host.planning (``flb``, ``him``, ...; parameters from the scenario's ``[meta.planner_params.NAME]``).
 
     ``goal`` replaces the scenario's goals; ``progress(t_s, duration_s)`` is called about every
     simulated second. The run ends on arrival at the last goal, a collision, falling into a hole,
@@ -68,8 +135,13 @@ def run_scenario(
     duration = sc.duration_s if duration_s is None else duration_s
     if not duration > 0:
         raise ValueError(f"duration_s must be > 0, got {duration}")
-    ctrl = make_standin(planner, _standin_params(sc))
+    ctrl = _make_controller(sc, planner)
     ctrl.reset()
+    sonar_slots = _SonarSlots(sc) if sc.sonar is not None and getattr(ctrl, "uses_sonar", False) else None
+    extras: dict[str, object] = {"goals": list(sc.goals), "goal_index": 0, "meta": sc.meta}
+    if "path" in sc.meta:
+        extras["path"] = np.asarray(sc.meta["path"], dtype=float)
+    times: list[float] = []
     ss = np.random.SeedSequence(seed)
     rng_robot, rng_laser, rng_sonar = (np.random.default_rng(s) for s in ss.spawn(3))
     robot = sc.make_robot()
@@ -94,8 +166,12 @@ def run_scenario(
         t_prev = (k - 1) * dt
         if (k - 1) % ctrl_every == 0:
             scan = sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None
-            obs = Observation(t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s, sc.goals[gi], scan)
+            sonar = sonar_slots.frame(world, robot.pose, t_prev, rng_sonar) if sonar_slots is not None else None
+            extras["goal_index"] = gi
+            obs = Observation(t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s, sc.goals[gi], scan, sonar, extras)
+            t0 = time.perf_counter()
             cmd = ctrl.step(obs)
+            times.append(time.perf_counter() - t0)
         robot.step(cmd, dt, rng_robot)
         t = k * dt
         cl = clearance(t)
@@ -125,7 +201,7 @@ def run_scenario(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
         last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s,
     )
-    return RunResult(sc.name, planner, seed, metrics, rows, reason)
+    return RunResult(sc.name, planner, seed, metrics, rows, reason, np.asarray(times))
 
 
 def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:

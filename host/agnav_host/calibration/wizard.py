@@ -1,0 +1,328 @@
+"""Interactive calibration of the steering and speed tables (``agnav calibrate steering|speed``).
+
+Procedure (ref 003, section 6.5, with the robot measuring itself):
+
+1. Safety briefing and confirmation (open flat area, >= 3 m free around the car, e-stop at hand;
+   Ctrl-C engages the firmware e-stop). Nothing moves before the operator answers "y".
+2. Read the active table (kept for the plot and to restore on failure), release the e-stop, arm.
+3. Sweep: for each PWM step (bounded by ``[calibration]`` limits, at most 40 steps) stream raw
+   setpoints (AGNAV_DRIVE_SETPOINT mode=AGNAV_DRIVE_RAW_PWM) at 10 Hz; ignore ``settle_s``; measure
+   for ``hold_s``. A step ends early after ``max_step_s`` or ``max_distance_m`` or when a higher
+   layer (failsafe, obstacle) takes over (the step is then discarded). The car stops between
+   steps.
+   Steering: constant low speed, steering PWM swept; phi = atan(L * yaw_rate / v) with the yaw
+   rate from two rear wheel encoders ((v_r - v_l) / track). With one encoder, the operator types
+   the diameter of the circle driven (ref 003's method).
+   Speed: steering at neutral, speed PWM swept; speed = mean wheel-encoder speed.
+4. Fit (isotonic, per side, dead band), show the fit (PNG), ask before writing.
+5. Write AGNAV_CALIB_TABLE, read back (AGNAV_CALIB_REQUEST READ) and compare, then save
+   (AGNAV_CALIB_ACTION_SAVE) if the operator agrees.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..link.calib_wire import TABLE_SPEED, TABLE_STEER, WireTable
+from ..link.config import CalibrationConfig
+from ..link.robot import AgnavRobot
+from .fit import CalibFitError, FitResult, fit_table, steer_from_diameter, steer_from_motion, yaw_rate_from_wheels
+
+__all__ = ["Wizard", "ConsoleIO", "ScriptedIO", "StepResult", "Aborted", "sweep_points", "MAX_STEPS"]
+
+MAX_STEPS = 40
+SETPOINT_HZ = 10.0
+MIN_SPEED_FOR_ANGLE_M_S = 0.05
+
+
+class Aborted(RuntimeError):
+    """The operator declined, or the robot could not be driven safely."""
+
+
+class ConsoleIO:
+    """Prompts on the terminal."""
+
+    def __init__(self, assume_yes: bool = False) -> None:
+        self.assume_yes = assume_yes
+
+    def say(self, text: str) -> None:
+        print(text, flush=True)
+
+    def confirm(self, question: str) -> bool:
+        if self.assume_yes:
+            print(f"{question} [y/N] y (--yes)")
+            return True
+        return input(f"{question} [y/N] ").strip().lower() in ("y", "yes")
+
+    def ask(self, question: str) -> str:
+        return input(f"{question} ").strip()
+
+
+@dataclass
+class ScriptedIO:
+    """Answers from a list (tests); records what was said."""
+
+    answers: list[str] = field(default_factory=list)
+    said: list[str] = field(default_factory=list)
+    default_yes: bool = True
+
+    def say(self, text: str) -> None:
+        self.said.append(text)
+
+    def confirm(self, question: str) -> bool:
+        self.said.append(question)
+        a = self.answers.pop(0) if self.answers else ("y" if self.default_yes else "n")
+        return a.lower().startswith("y")
+
+    def ask(self, question: str) -> str:
+        self.said.append(question)
+        return self.answers.pop(0) if self.answers else ""
+
+
+@dataclass
+class StepResult:
+    pwm: int
+    values: list[float]        # per-sample measurements, cdeg or mm/s
+    duration_s: float
+    distance_m: float
+    ok: bool
+    note: str = ""
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.values) if self.values else float("nan")
+
+
+def sweep_points(lo: int, hi: int, step: int, neutral: int | None = None) -> list[int]:
+    """PWM steps from lo to hi (inclusive, clamped to 0..3000), including neutral, at most MAX_STEPS."""
+    lo, hi = max(0, int(lo)), min(3000, int(hi))
+    if hi < lo or step <= 0:
+        raise ValueError(f"bad sweep {lo}..{hi} step {step}")
+    pts = set(range(lo, hi + 1, step)) | {hi}
+    if neutral is not None and lo <= neutral <= hi:
+        pts.add(int(neutral))
+    out = sorted(pts)
+    if len(out) > MAX_STEPS:
+        raise ValueError(f"sweep has {len(out)} steps (max {MAX_STEPS}): raise the step")
+    return out
+
+
+class Wizard:
+    """See the module docstring. ``io`` has say/confirm/ask; ``plot_dir`` gets the PNGs."""
+
+    def __init__(self, robot: AgnavRobot, cfg: CalibrationConfig | None = None, io: Any = None,
+                 plot_dir: str | Path | None = None, sleep: Callable[[float], None] = time.sleep) -> None:
+        self.robot = robot
+        self.cfg = cfg or CalibrationConfig()
+        self.io = io or ConsoleIO()
+        self.plot_dir = Path(plot_dir) if plot_dir else None
+        self.sleep = sleep
+        self.steps: list[StepResult] = []
+        self.plots: list[Path] = []
+
+    # ---- safety ---------------------------------------------------------------------------------
+    def _brief(self, what: str) -> None:
+        c = self.cfg
+        self.io.say(f"Calibrating {what}. The car will drive by itself in raw PWM mode: each step lasts at "
+                    f"most {c.max_step_s:.0f} s and {c.max_distance_m:.1f} m; the firmware's failsafe and obstacle "
+                    f"layers stay active. Use an open, flat area with >= {c.max_distance_m:.0f} m free all around. "
+                    "Ctrl-C stops the car with the firmware e-stop.")
+        if not self.io.confirm("Area clear, wheels on the ground, e-stop at hand: start?"):
+            raise Aborted("operator declined")
+
+    def _prepare(self) -> None:
+        st = self.robot.state
+        if self.robot.ep.stats.link_up is False and st.heartbeat is None:
+            raise Aborted("no link to the robot")
+        self.robot.param_get("ENC_NM_PER_CNT")  # distance per encoder count, for the distance limit
+        self.robot.release()
+        self.robot.arm()
+
+    def _stop(self, estop: bool = False) -> None:
+        for _ in range(3):
+            try:
+                self.robot.stop()
+            except Exception:
+                pass
+        if estop:
+            try:
+                self.robot.estop(True)
+            except Exception as e:  # the firmware link-loss failsafe still stops it
+                self.io.say(f"e-stop not acknowledged ({e}); the firmware stops on link loss")
+
+    # ---- one step -------------------------------------------------------------------------------
+    def measure_step(self, steer_pwm: int, speed_pwm: int, kind: str, method: str) -> StepResult:
+        """Drive one raw step and measure (see module docstring). ``kind``: steer | speed."""
+        c = self.cfg
+        ep = self.robot.ep
+        values: list[float] = []
+        dist = 0.0
+        t0 = time.monotonic()
+        period = 1.0 / SETPOINT_HZ
+        note = ""
+        ok = True
+        pwm = steer_pwm if kind == "steer" else speed_pwm
+        start_counts: tuple[int, ...] | None = None
+        with ep.subscribe(["AGNAV_ENCODER_STATUS", "AGNAV_ODOMETRY", "AGNAV_BEHAVIOUR_STATUS"]) as sub:
+            next_send = 0.0
+            bad_since: float | None = None
+            while True:
+                now = time.monotonic()
+                el = now - t0
+                if el >= min(c.settle_s + c.hold_s, c.max_step_s):
+                    break
+                if now >= next_send:
+                    self.robot.drive_raw(steer_pwm, speed_pwm)
+                    next_send = now + period
+                m = sub.get(max(0.0, min(next_send - time.monotonic(), 0.05)))
+                if m is None:
+                    continue
+                t = m.get_type()
+                if t == "AGNAV_BEHAVIOUR_STATUS":
+                    if m.active_layer != 5 and el > 0.3:  # not HOST_COMMAND: something overrides us
+                        bad_since = bad_since if bad_since is not None else now
+                        if now - bad_since > 0.5:
+                            ok, note = False, f"layer {m.active_layer} reason {m.reason} took over"
+                            break
+                    else:
+                        bad_since = None
+                elif t == "AGNAV_ENCODER_STATUS" and m.count_wheels >= 1:
+                    k = m.count_wheels
+                    nm = float(self.robot.state.params.get("ENC_NM_PER_CNT", 13550000.0))
+                    if start_counts is None:
+                        start_counts = tuple(m.count[:k])
+                    dist = abs(statistics.mean((m.count[i] - start_counts[i]) for i in range(k))) * nm * 1e-9
+                    if dist > c.max_distance_m:
+                        note = f"stopped early after {dist:.1f} m"
+                        break
+                    if el < c.settle_s:
+                        continue
+                    speeds = [s / 1000.0 for s in m.speed_mm_s[:k]]
+                    v = statistics.mean(speeds)
+                    if kind == "speed" and method == "encoders":
+                        values.append(v * 1000.0)
+                    elif kind == "steer" and method == "encoders" and k >= 2 and abs(v) >= MIN_SPEED_FOR_ANGLE_M_S:
+                        w = yaw_rate_from_wheels(speeds[0], speeds[1], c.track_m)
+                        values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
+                elif t == "AGNAV_ODOMETRY" and el >= c.settle_s and method == "odometry":
+                    v = m.speed_mm_s / 1000.0
+                    if kind == "speed":
+                        values.append(float(m.speed_mm_s))
+                    elif abs(v) >= MIN_SPEED_FOR_ANGLE_M_S:
+                        w = math.radians(m.yaw_rate_cdeg_s / 100.0)
+                        values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
+        dur = time.monotonic() - t0
+        if ok and not values and method != "diameter":
+            ok, note = False, note or "no usable samples (is the car moving? encoders connected?)"
+        return StepResult(pwm, values, dur, dist, ok, note)
+
+    def _pause_between_steps(self) -> None:
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:
+            self.robot.stop()
+            self.sleep(0.1)
+
+    # ---- sweeps ---------------------------------------------------------------------------------
+    def _method(self, kind: str) -> str:
+        enc = self.robot.state.encoders
+        wheels = enc.wheels if enc else 0
+        if kind == "speed":
+            return "encoders" if wheels >= 1 else "odometry"
+        return "encoders" if wheels >= 2 else "diameter"
+
+    def _sweep(self, kind: str) -> tuple[np.ndarray, np.ndarray]:
+        c = self.cfg
+        method = self._method(kind)
+        if kind == "steer":
+            pwms = sweep_points(c.steer_pwm_min, c.steer_pwm_max, c.steer_step, c.steer_neutral_pwm)
+        else:
+            pwms = sweep_points(c.speed_pwm_min, c.speed_pwm_max, c.speed_step)
+        self.io.say(f"{kind}: {len(pwms)} steps {pwms[0]}..{pwms[-1]}, measuring with {method}")
+        xs: list[float] = []
+        ys: list[float] = []
+        for p in pwms:
+            steer_pwm, speed_pwm = (p, c.steer_speed_pwm) if kind == "steer" else (self._steer_neutral, p)
+            r = self.measure_step(steer_pwm, speed_pwm, kind, method)
+            self._pause_between_steps()
+            if method == "diameter" and kind == "steer":
+                r = self._ask_diameter(r)
+            self.steps.append(r)
+            self.io.say(f"  pwm {p:5d}: {'%8.0f' % r.median if r.values else '     n/a'} "
+                        f"({len(r.values)} samples, {r.distance_m:.2f} m){' ' + r.note if r.note else ''}")
+            if r.ok:
+                xs += [p] * len(r.values)
+                ys += r.values
+        return np.array(xs, dtype=float), np.array(ys, dtype=float)
+
+    def _ask_diameter(self, r: StepResult) -> StepResult:
+        a = self.io.ask(f"pwm {r.pwm}: diameter of the circle driven in m, then L or R (e.g. '1.9 L'; 'inf' if straight):")
+        parts = a.split()
+        try:
+            dia = float(parts[0])
+        except (ValueError, IndexError):
+            return StepResult(r.pwm, [], r.duration_s, r.distance_m, False, "no diameter given")
+        left = len(parts) > 1 and parts[1].upper().startswith("L")
+        phi = steer_from_diameter(dia, self.cfg.wheelbase_m, left)
+        return StepResult(r.pwm, [math.degrees(phi) * 100.0], r.duration_s, r.distance_m, True, "diameter")
+
+    def _fit_write(self, kind: str, table_id: int, xs: np.ndarray, ys: np.ndarray, previous: WireTable,
+                   save: bool | None) -> FitResult:
+        c = self.cfg
+        try:
+            if kind == "steer":
+                fit = fit_table(xs, ys, table_id, dead_band=c.dead_band_cdeg)
+            else:
+                fit = fit_table(xs, ys, table_id, dead_band=c.dead_band_mm_s, neutral_pwm=previous.neutral_pwm,
+                                require_both_sides=False)
+        except CalibFitError as e:
+            raise Aborted(f"fit failed: {e}") from None
+        self.io.say(fit.summary())
+        if self.plot_dir is not None:
+            try:
+                from .plot import plot_fit
+
+                png = plot_fit(fit, self.plot_dir / f"calib_{kind}.png", previous)
+                self.plots.append(png)
+                self.io.say(f"fit plot: {png}")
+            except RuntimeError as e:
+                self.io.say(str(e))
+        if not self.io.confirm("Write this table to the robot (active at once, verified by read-back)?"):
+            raise Aborted("table not written")
+        self.robot.calib_write_verified(fit.table, save=False)
+        self.io.say("written and verified by read-back")
+        do_save = save if save is not None else self.io.confirm("Save all tables to EEPROM?")
+        if do_save:
+            self.robot.calib_save(table_id)
+            self.io.say("saved to EEPROM")
+        return fit
+
+    def _run(self, kind: str, table_id: int, save: bool | None) -> FitResult:
+        self._brief("the steering" if kind == "steer" else "the speed")
+        previous = self.robot.calib_read(table_id)
+        steer_tab = previous if table_id == TABLE_STEER else self.robot.calib_read(TABLE_STEER)
+        self._steer_neutral = steer_tab.neutral_pwm
+        self.io.say(f"active table: {previous.describe()}")
+        try:
+            self._prepare()
+            xs, ys = self._sweep(kind)
+        except KeyboardInterrupt:
+            self._stop(estop=True)
+            raise Aborted("interrupted: e-stop engaged (release with `agnav run` or the wizard)") from None
+        except BaseException:
+            self._stop(estop=True)
+            raise
+        self._stop()
+        return self._fit_write(kind, table_id, xs, ys, previous, save)
+
+    def run_steering(self, save: bool | None = None) -> FitResult:
+        return self._run("steer", TABLE_STEER, save)
+
+    def run_speed(self, save: bool | None = None) -> FitResult:
+        return self._run("speed", TABLE_SPEED, save)

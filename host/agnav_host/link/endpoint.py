@@ -1,0 +1,512 @@
+"""The host's MAVLink endpoint: one session with one robot over serial/USB/XBee, TCP or UDP.
+
+    ep = Endpoint("serial:/dev/ttyUSB0:57600", tlog="out/run.tlog", key=load_key())
+    ep.start(wait_heartbeat_s=5)
+    ... ep.state.pose, ep.stats.rx_rate_bytes_s, ep.send(msg), ep.request(...)
+    ep.close()
+
+Transports are pymavlink ``mavutil`` connections (device strings as in MAVProxy):
+
+    serial:/dev/ttyUSB0:57600   /dev/ttyUSB0 (baud from ``baud``)   USB serial or an XBee in
+                                transparent mode (it is just a serial port)
+    tcp:HOST:PORT               connect (the SIL serves 127.0.0.1:5760)
+    udp:HOST:PORT  udpin:...    listen; udpout:HOST:PORT sends to a peer
+
+A session outlives its transport: one I/O thread reads, parses, sends the 1 Hz GCS heartbeat and,
+when the transport fails (cable unplugged, TCP peer closed), reopens it every
+``reconnect_delay_s`` while keeping the codec (sequence numbers, signing timestamp), the
+:class:`RobotState`, the :class:`LinkStats` counters and the tlog. Silence longer than
+``link_timeout_s`` (a radio drop) marks the link down without reopening anything; the first byte
+back marks it up again.
+
+Every frame, in and out, is appended to the tlog (8-byte big-endian microsecond timestamp + the
+frame, readable by ``mavutil.mavlogfile``). The receive rate is measured over a sliding window and a
+warning is raised when it exceeds the telemetry budget (1500 B/s: ~26 % of a 57600-baud link,
+which carries 5760 B/s at 10 bits per byte).
+
+Signing (MAVLink 2): with ``key`` set every outgoing frame is signed; incoming unsigned frames are
+accepted unless ``require_signed`` (the AgNav firmware does not sign its telemetry).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import select
+import threading
+import time
+from collections import deque
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from ..protocol import dialect
+from .state import LinkStats, RobotState
+from .tlog import TlogWriter
+
+__all__ = ["Endpoint", "LinkDown", "LinkTimeout", "parse_device", "RateMeter", "Subscription",
+           "TELEMETRY_BUDGET_BYTES_S", "DeviceSpec"]
+
+log = logging.getLogger("agnav.link")
+
+#: Default receive budget at 57600 baud (5760 B/s line rate): leaves room for the host's own
+#: traffic, PARAM and calibration exchanges and radio retries.
+TELEMETRY_BUDGET_BYTES_S = 1500.0
+GCS_SYSID = 255
+GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
+
+
+class LinkDown(ConnectionError):
+    """The transport failed (EOF, reset, unplugged); the endpoint reopens it."""
+
+
+class LinkTimeout(TimeoutError):
+    """No answer to a request within its timeout and retries."""
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    kind: str  # serial | tcp | udp | udpin | udpout | tcpin
+    address: str  # what mavutil gets
+    baud: int
+
+    def __str__(self) -> str:
+        return f"serial:{self.address}:{self.baud}" if self.kind == "serial" else self.address
+
+
+def parse_device(device: str, baud: int = 57600) -> DeviceSpec:
+    """Parse a device string (see module docstring); raises ValueError on nonsense."""
+    d = device.strip()
+    if not d:
+        raise ValueError("empty device")
+    for pfx in ("tcpin:", "tcp:", "udpin:", "udpout:", "udpbcast:", "udp:"):
+        if d.startswith(pfx):
+            rest = d[len(pfx):]
+            host, sep, port = rest.rpartition(":")
+            if not sep or not port.isdigit() or not (0 < int(port) < 65536):
+                raise ValueError(f"{device!r}: expected {pfx}HOST:PORT")
+            return DeviceSpec(pfx[:-1], d, baud)
+    if d.startswith("serial:"):
+        rest = d[len("serial:"):]
+        path, sep, b = rest.rpartition(":")
+        if sep and b.isdigit():
+            return DeviceSpec("serial", path, int(b))
+        return DeviceSpec("serial", rest, baud)
+    if d.startswith(("/", "COM", "com")) or "tty" in d:
+        return DeviceSpec("serial", d, baud)
+    raise ValueError(f"unknown device {device!r}: use serial:/dev/ttyUSB0:57600, tcp:HOST:PORT or udp:HOST:PORT")
+
+
+class RateMeter:
+    """Bytes per second over a sliding window (``add`` from one thread, ``rate`` from any)."""
+
+    def __init__(self, window_s: float = 5.0) -> None:
+        self.window_s = window_s
+        self._q: deque[tuple[float, int]] = deque()
+        self._sum = 0
+        self._t0: float | None = None
+        self._lock = threading.Lock()
+
+    def add(self, t: float, n: int) -> None:
+        with self._lock:
+            if self._t0 is None:
+                self._t0 = t
+            self._q.append((t, n))
+            self._sum += n
+            self._trim(t)
+
+    def _trim(self, t: float) -> None:
+        while self._q and self._q[0][0] < t - self.window_s:
+            self._sum -= self._q.popleft()[1]
+
+    def rate(self, t: float) -> float:
+        with self._lock:
+            self._trim(t)
+            if self._t0 is None:
+                return 0.0
+            span = min(self.window_s, max(t - self._t0, 1e-3))
+            return self._sum / span
+
+    def full(self, t: float) -> bool:
+        """True once a whole window has been observed."""
+        return self._t0 is not None and t - self._t0 >= self.window_s
+
+
+class Subscription:
+    """Queue of received messages matching types and an optional predicate."""
+
+    def __init__(self, ep: "Endpoint", types: Iterable[str] | None, predicate: Callable[[Any], bool] | None) -> None:
+        self._ep = ep
+        self.types = None if types is None else frozenset(types)
+        self.predicate = predicate
+        self.q: queue.Queue[Any] = queue.Queue()
+
+    def wants(self, msg: Any) -> bool:
+        if self.types is not None and msg.get_type() not in self.types:
+            return False
+        return self.predicate is None or bool(self.predicate(msg))
+
+    def get(self, timeout: float) -> Any:
+        """Next matching message or None after ``timeout`` seconds."""
+        try:
+            return self.q.get(timeout=max(timeout, 0.0))
+        except queue.Empty:
+            return None
+
+    def drain(self) -> list[Any]:
+        out = []
+        while True:
+            try:
+                out.append(self.q.get_nowait())
+            except queue.Empty:
+                return out
+
+    def close(self) -> None:
+        self._ep._unsubscribe(self)
+
+    def __enter__(self) -> "Subscription":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Endpoint:
+    """One MAVLink session with a robot (see the module docstring)."""
+
+    def __init__(self, device: str, baud: int = 57600, *, source_system: int = GCS_SYSID,
+                 source_component: int = GCS_COMPID, target_system: int = 0, target_component: int = 0,
+                 tlog: str | Path | None = None, key: bytes | None = None, require_signed: bool = False,
+                 heartbeat_hz: float = 1.0, link_timeout_s: float = 3.0, reconnect_delay_s: float = 0.5,
+                 budget_bytes_s: float = TELEMETRY_BUDGET_BYTES_S, budget_window_s: float = 5.0,
+                 budget_warn_every_s: float = 60.0, on_event: Callable[[str], None] | None = None) -> None:
+        self.spec = parse_device(device, baud)
+        self.d = dialect()
+        self.mav = self.d.MAVLink(None, srcSystem=source_system, srcComponent=source_component)
+        self.mav.robust_parsing = True
+        self._fixed_target = (target_system, target_component)
+        self._target = (target_system, target_component)
+        self.heartbeat_hz = heartbeat_hz
+        self.link_timeout_s = link_timeout_s
+        self.reconnect_delay_s = reconnect_delay_s
+        self.budget_bytes_s = budget_bytes_s
+        self.meter = RateMeter(budget_window_s)
+        self.budget_warn_every_s = budget_warn_every_s
+        self.state = RobotState()
+        self.stats = LinkStats()
+        self.events: deque[tuple[float, str]] = deque(maxlen=500)
+        self.on_event = on_event
+        self.tlog: TlogWriter | None = TlogWriter(tlog) if tlog else None
+        self._conn: Any = None
+        self._broken = False
+        self._send_lock = threading.Lock()
+        self._subs: list[Subscription] = []
+        self._subs_lock = threading.Lock()
+        self._listeners: list[Callable[[Any], None]] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._last_rx: float | None = None
+        self._last_hb = -1e9
+        self._last_budget_check = 0.0
+        self._last_budget_warn = -1e9
+        self._next_open = 0.0
+        self._last_seq: dict[tuple[int, int], int] = {}
+        self._opened_once = threading.Event()
+        self.require_signed = require_signed
+        if key is not None:
+            self.set_signing_key(key)
+
+    # ---- configuration -------------------------------------------------------------------------
+    def set_signing_key(self, key: bytes | None, link_id: int = 1) -> None:
+        """Sign outgoing frames with ``key`` (32 bytes); None disables signing."""
+        s = self.mav.signing
+        if key is None:
+            s.secret_key, s.sign_outgoing, s.allow_unsigned_callback, s.link_id = None, False, None, 0
+            return
+        if len(key) != 32:
+            raise ValueError("MAVLink signing key must be 32 bytes")
+        s.secret_key = bytes(key)
+        s.sign_outgoing = True
+        s.link_id = link_id
+        # 10 us units since 2015-01-01, as the MAVLink spec asks
+        s.timestamp = max(s.timestamp, int((time.time() - 1420070400) * 100_000))
+        s.allow_unsigned_callback = None if self.require_signed else (lambda mav, msgid: True)
+
+    @property
+    def signing(self) -> bool:
+        return bool(self.mav.signing.sign_outgoing)
+
+    @property
+    def target_system(self) -> int:
+        return self._target[0]
+
+    @property
+    def target_component(self) -> int:
+        return self._target[1]
+
+    def add_listener(self, fn: Callable[[Any], None]) -> None:
+        """Call ``fn(msg)`` from the I/O thread for every received message (keep it short)."""
+        self._listeners.append(fn)
+
+    # ---- life cycle ------------------------------------------------------------------------------
+    def start(self, wait_heartbeat_s: float | None = None, open_timeout_s: float = 10.0) -> "Endpoint":
+        """Start the I/O thread; wait until the transport opened once (raises ConnectionError after
+        ``open_timeout_s``) and optionally for the robot's first heartbeat (LinkTimeout)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="agnav-link", daemon=True)
+            self._thread.start()
+        if not self._opened_once.wait(open_timeout_s):
+            self.close()
+            raise ConnectionError(f"could not open {self.spec} within {open_timeout_s:.0f} s")
+        if wait_heartbeat_s is not None:
+            self.wait_heartbeat(wait_heartbeat_s)
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        self._close_conn()
+        if self.tlog is not None:
+            self.tlog.close()
+
+    def __enter__(self) -> "Endpoint":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _event(self, text: str, level: int = logging.INFO) -> None:
+        self.events.append((time.monotonic(), text))
+        log.log(level, "%s: %s", self.spec, text)
+        if self.on_event is not None:
+            try:
+                self.on_event(text)
+            except Exception:  # a UI callback must not kill the link
+                log.exception("on_event callback failed")
+
+    # ---- transport ---------------------------------------------------------------------------------
+    def _open_conn(self) -> None:
+        from pymavlink import mavutil
+
+        sp = self.spec
+        if sp.kind == "serial":
+            conn = mavutil.mavlink_connection(sp.address, baud=sp.baud, autoreconnect=False)
+        elif sp.kind == "tcp":
+            conn = mavutil.mavlink_connection(sp.address, retries=1, autoreconnect=False)
+
+            def _down(*_a: object) -> None:
+                raise LinkDown("TCP peer closed the connection")
+
+            conn.handle_eof = _down
+            conn.handle_disconnect = _down
+        else:
+            conn = mavutil.mavlink_connection(sp.address, input=sp.kind in ("udp", "udpin", "tcpin"))
+        # Our codec (AgNav dialect, MAVLink 2) replaces mavutil's; it lives as long as the session.
+        conn.mav = self.mav
+        self.mav.file = conn
+        conn.first_byte = False
+        conn.WIRE_PROTOCOL_VERSION = "2.0"
+        self._conn = conn
+        self._broken = False
+        self.stats.transport_open = True
+
+    def _close_conn(self) -> None:
+        conn, self._conn = self._conn, None
+        self.stats.transport_open = False
+        if conn is not None:
+            try:
+                conn.close()
+            except Exception:
+                pass
+
+    # ---- I/O thread --------------------------------------------------------------------------------
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if self._conn is None:
+                if now < self._next_open:
+                    self._stop.wait(min(0.05, self._next_open - now))
+                    continue
+                try:
+                    self._open_conn()
+                except Exception as e:  # device missing, connection refused...
+                    self._next_open = now + self.reconnect_delay_s
+                    if not self._opened_once.is_set():
+                        log.debug("open %s failed: %s", self.spec, e)
+                    continue
+                if self._opened_once.is_set():
+                    self.stats.reconnects += 1
+                    self._event(f"transport reopened (reconnect #{self.stats.reconnects})")
+                else:
+                    self._event("transport open")
+                self._opened_once.set()
+                self._last_hb = -1e9  # announce ourselves at once
+            try:
+                self._service(now)
+            except Exception as e:  # LinkDown, OSError, serial.SerialException
+                self._event(f"transport failed: {e}", logging.WARNING)
+                self._close_conn()
+                self._next_open = time.monotonic() + self.reconnect_delay_s
+        self._close_conn()
+
+    def _service(self, now: float) -> None:
+        if self._broken:
+            raise LinkDown("write failed")
+        if self.heartbeat_hz > 0 and now - self._last_hb >= 1.0 / self.heartbeat_hz:
+            self._last_hb = now
+            self.send(self.mav.heartbeat_encode(self.d.MAV_TYPE_GCS, self.d.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                self.d.MAV_STATE_ACTIVE))
+        if now - self._last_budget_check >= 0.5:
+            self._last_budget_check = now
+            self._check_rates(now)
+        conn = self._conn
+        if conn is None:
+            return
+        fd = getattr(conn, "fd", None)
+        if fd is not None:
+            r, _, _ = select.select([fd], [], [], 0.02)
+            if not r:
+                return
+        data = conn.recv(4096)
+        if not data:
+            if fd is None:
+                time.sleep(0.005)
+            return
+        if isinstance(data, str):
+            data = data.encode("latin-1")
+        t = time.monotonic()
+        self.stats.rx_bytes += len(data)
+        self.meter.add(t, len(data))
+        if self._last_rx is None or not self.stats.link_up:
+            self.stats.link_up = True
+            if self._last_rx is not None:
+                self._event("link up again (data flowing)")
+        self._last_rx = t
+        msgs = self.mav.parse_buffer(data) or []
+        for m in msgs:
+            self._handle(m, t)
+
+    def _check_rates(self, now: float) -> None:
+        rate = self.meter.rate(now)
+        self.stats.rx_rate_bytes_s = rate
+        if self.meter.full(now):
+            self.stats.peak_rx_rate_bytes_s = max(self.stats.peak_rx_rate_bytes_s, rate)
+            if rate > self.budget_bytes_s:
+                self.stats.budget_windows_over += 1
+            if rate > self.budget_bytes_s and now - self._last_budget_warn >= self.budget_warn_every_s:
+                self._last_budget_warn = now
+                self.stats.budget_warnings += 1
+                self._event(f"telemetry over budget: {rate:.0f} B/s received > {self.budget_bytes_s:.0f} B/s",
+                            logging.WARNING)
+        if self.stats.link_up and self._last_rx is not None and now - self._last_rx > self.link_timeout_s:
+            self.stats.link_up = False
+            self.stats.link_losses += 1
+            self._event(f"link lost: nothing received for {now - self._last_rx:.1f} s", logging.WARNING)
+
+    def _handle(self, m: Any, t: float) -> None:
+        mtype = m.get_type()
+        if mtype == "BAD_DATA":
+            self.stats.rx_parse_errors += 1
+            return
+        self.stats.rx_msgs += 1
+        if self.tlog is not None:
+            self.tlog.write(m.get_msgbuf())
+        src = (m.get_srcSystem(), m.get_srcComponent())
+        last = self._last_seq.get(src)
+        if last is not None:
+            self.stats.rx_seq_lost += (m.get_seq() - last - 1) % 256
+        self._last_seq[src] = m.get_seq()
+        if mtype == "HEARTBEAT" and self._target[0] == 0 and m.type != self.d.MAV_TYPE_GCS:
+            self._target = (src[0], self._fixed_target[1] or src[1])
+            self._event(f"target is system {src[0]} component {src[1]}")
+        self.state.update(m, t, self._target[0] or None)
+        with self._subs_lock:
+            subs = list(self._subs)
+        for s in subs:
+            if s.wants(m):
+                s.q.put(m)
+        for fn in self._listeners:
+            try:
+                fn(m)
+            except Exception:
+                log.exception("listener failed on %s", mtype)
+
+    # ---- sending -----------------------------------------------------------------------------------
+    def send(self, msg: Any) -> bool:
+        """Pack (and sign) ``msg`` with the session codec, log it, write it. False when the
+        transport is down (the frame is dropped and counted; nothing is queued for later)."""
+        with self._send_lock:
+            buf = msg.pack(self.mav)
+            self.mav.seq = (self.mav.seq + 1) % 256
+            self.mav.total_packets_sent += 1
+            self.mav.total_bytes_sent += len(buf)
+            if self.tlog is not None:
+                self.tlog.write(buf)
+            conn = self._conn
+            if conn is None or self._broken:
+                self.stats.tx_dropped += 1
+                return False
+            try:
+                r = conn.write(buf)
+            except Exception as e:
+                self._broken = True
+                self.stats.tx_dropped += 1
+                log.debug("write failed: %s", e)
+                return False
+            if r == -1:  # mavserial reports a dead port this way
+                self._broken = True
+                self.stats.tx_dropped += 1
+                return False
+            self.stats.tx_msgs += 1
+            self.stats.tx_bytes += len(buf)
+            return True
+
+    # ---- receiving -----------------------------------------------------------------------------
+    def subscribe(self, types: Iterable[str] | str | None = None,
+                  predicate: Callable[[Any], bool] | None = None) -> Subscription:
+        if isinstance(types, str):
+            types = [types]
+        s = Subscription(self, types, predicate)
+        with self._subs_lock:
+            self._subs.append(s)
+        return s
+
+    def _unsubscribe(self, s: Subscription) -> None:
+        with self._subs_lock:
+            if s in self._subs:
+                self._subs.remove(s)
+
+    def wait_message(self, types: Iterable[str] | str | None, predicate: Callable[[Any], bool] | None = None,
+                     timeout: float = 1.0) -> Any:
+        """Next message (received from now on) matching ``types``/``predicate``, or None."""
+        with self.subscribe(types, predicate) as s:
+            return s.get(timeout)
+
+    def request(self, make: Callable[[], Any], types: Iterable[str] | str, predicate: Callable[[Any], bool] | None = None,
+                timeout: float = 1.0, retries: int = 3, what: str = "request") -> Any:
+        """Send ``make()`` and wait for a matching answer, resending up to ``retries`` times."""
+        with self.subscribe(types, predicate) as s:
+            for _ in range(max(1, retries)):
+                self.send(make())
+                m = s.get(timeout)
+                if m is not None:
+                    return m
+        raise LinkTimeout(f"{what}: no answer from {self.spec} after {retries} x {timeout:.1f} s")
+
+    def wait_heartbeat(self, timeout: float = 5.0) -> Any:
+        """Block until a non-GCS heartbeat arrives (returns it) or raise LinkTimeout."""
+        hb = self.wait_message("HEARTBEAT", lambda m: m.type != self.d.MAV_TYPE_GCS, timeout)
+        if hb is None:
+            raise LinkTimeout(f"no heartbeat from {self.spec} within {timeout:.1f} s")
+        return hb
+
+    def stats_dict(self) -> dict[str, Any]:
+        d = asdict(self.stats)
+        d["rx_rate_bytes_s"] = round(self.meter.rate(time.monotonic()), 1)
+        d["signing"] = self.signing
+        if self.signing:
+            s = self.mav.signing
+            d.update(signed_rx_good=s.goodsig_count, signed_rx_bad=s.badsig_count, unsigned_rx=s.unsigned_count,
+                     rejected_rx=s.reject_count)
+        return d

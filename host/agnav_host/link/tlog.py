@@ -1,0 +1,83 @@
+"""Telemetry logs in mavutil's ``.tlog`` format (what MAVProxy, mavlogdump.py and
+``pymavlink.mavutil.mavlogfile`` read): each MAVLink frame is preceded by an 8-byte big-endian
+timestamp in microseconds since the Unix epoch. Both directions go into the same file (the
+host's own frames carry the host's system id, 255 by default), as MAVProxy does.
+"""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+from pathlib import Path
+from typing import Any, Iterator
+
+__all__ = ["TlogWriter", "read_tlog"]
+
+
+class TlogWriter:
+    """Append-only, thread-safe tlog writer. ``write(frame)`` stamps with the wall clock."""
+
+    def __init__(self, path: str | Path, flush_every_s: float = 1.0) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._f = open(self.path, "ab")
+        self._lock = threading.Lock()
+        self._flush_every_s = flush_every_s
+        self._last_flush = time.monotonic()
+        self.frames = 0
+        self.bytes = 0
+
+    def write(self, frame: bytes | bytearray, t_s: float | None = None) -> None:
+        usec = int((time.time() if t_s is None else t_s) * 1e6) & ~3  # mavutil masks the low bits too
+        with self._lock:
+            if self._f.closed:
+                return
+            self._f.write(struct.pack(">Q", usec) + bytes(frame))
+            self.frames += 1
+            self.bytes += len(frame) + 8
+            now = time.monotonic()
+            if now - self._last_flush >= self._flush_every_s:
+                self._f.flush()
+                self._last_flush = now
+
+    def flush(self) -> None:
+        with self._lock:
+            if not self._f.closed:
+                self._f.flush()
+
+    def close(self) -> None:
+        with self._lock:
+            if not self._f.closed:
+                self._f.close()
+
+    def __enter__(self) -> "TlogWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_tlog(path: str | Path) -> Iterator[tuple[float, Any]]:
+    """Yield (unix time s, decoded message) from a tlog, with pymavlink's own reader
+    (``mavutil.mavlogfile``) fitted with the AgNav dialect so AgNav messages decode."""
+    from pymavlink import mavutil
+
+    from ..protocol import dialect
+
+    log = mavutil.mavlogfile(str(path), robust_parsing=True, notimestamps=False)
+    d = dialect()
+    log.mav = d.MAVLink(log, srcSystem=0, srcComponent=0)
+    log.mav.robust_parsing = True
+    log.first_byte = False
+    log.WIRE_PROTOCOL_VERSION = "2.0"
+    try:
+        while True:
+            m = log.recv_msg()
+            if m is None:
+                break
+            if m.get_type() == "BAD_DATA":
+                continue
+            yield float(getattr(m, "_timestamp", 0.0)), m
+    finally:
+        log.close()

@@ -1,0 +1,498 @@
+"""Row following controllers: centre line between two rows, proximity to one row, headland turns.
+
+Each controller has ``reset()`` and ``step(obs) -> DriveCommand`` (the simulator's ``Controller``
+shape) and reads ``obs.scan``; the laser's pose on the robot is a parameter (``mount``).
+
+Between scans the estimate (lateral error e, heading error psi) is carried forward with the robot's
+own speed and yaw rate, ``de/dt = v sin(psi)`` and ``dpsi/dt = w - v kappa``, in a two-state Kalman
+filter; each detection is a measurement whose noise grows as its confidence falls. The steering law
+puts the lateral error on a second-order response with natural frequency ``omega_n`` and damping
+``zeta``: ``w = v kappa - 2 zeta omega_n psi - (omega_n^2 / v) e`` (a differential drive takes ``w``
+directly, an Ackermann robot the steering angle ``atan(L w / v)``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
+from ._rows import ROW_METHODS, RowEndDetector, RowEstimate, RowParams, detect_rows_points
+from ._scan import ScanParams, ScanPoints, points_from_scan
+
+__all__ = [
+    "DriveLimits",
+    "RowFollowerParams",
+    "RowFollower",
+    "SingleRowEstimate",
+    "detect_single_row",
+    "ProximityFollowerParams",
+    "ProximityFollower",
+    "headland_path",
+    "HeadlandTurn",
+    "RowNavigator",
+    "RowNavigatorParams",
+]
+
+
+@dataclass(frozen=True)
+class DriveLimits:
+    """The robot the controller drives (SI units)."""
+
+    kinematics: str = "diff_drive"  # or "ackermann"
+    max_yaw_rate_rad_s: float = 1.2
+    wheelbase_m: float = 0.174
+    max_steer_rad: float = math.radians(24.6)
+    min_turn_radius_m: float = 0.3  # differential drive: the tightest headland arc it should drive
+
+    def __post_init__(self) -> None:
+        if self.kinematics not in ("diff_drive", "ackermann"):
+            raise ValueError(f"kinematics must be 'diff_drive' or 'ackermann', got {self.kinematics!r}")
+
+    @property
+    def turn_radius_m(self) -> float:
+        if self.kinematics == "ackermann":
+            return self.wheelbase_m / math.tan(self.max_steer_rad)
+        return self.min_turn_radius_m
+
+    def command(self, v: float, w: float) -> DriveCommand:
+        """A drive command for speed v (m/s) and yaw rate w (rad/s), within the limits."""
+        if self.kinematics == "ackermann":
+            steer = math.atan(self.wheelbase_m * w / v) if abs(v) > 1e-6 else 0.0
+            return DriveCommand(v, 0.0, max(-self.max_steer_rad, min(self.max_steer_rad, steer)))
+        return DriveCommand(v, max(-self.max_yaw_rate_rad_s, min(self.max_yaw_rate_rad_s, w)))
+
+
+class _TrackFilter:
+    """Kalman filter on (e, psi) of the module docstring."""
+
+    def __init__(self, q_e: float, q_psi: float) -> None:
+        self.q = np.diag([q_e**2, q_psi**2])
+        self.x: FloatArray | None = None
+        self.P = np.eye(2)
+        self.t: float | None = None
+        self.kappa = 0.0
+
+    def predict(self, t: float, v: float, w: float) -> None:
+        if self.x is None or self.t is None:
+            self.t = t
+            return
+        dt = max(0.0, t - self.t)
+        self.t = t
+        e, psi = self.x
+        self.x = np.array([e + v * math.sin(psi) * dt, norm_angle_rad(psi + (w - v * self.kappa) * dt)])
+        F = np.array([[1.0, v * math.cos(psi) * dt], [0.0, 1.0]])
+        self.P = F @ self.P @ F.T + self.q * max(dt, 1e-3)
+
+    def update(self, e: float, psi: float | None, std_e: float, std_psi: float) -> None:
+        if self.x is None:
+            self.x = np.array([e, psi if psi is not None else 0.0])
+            self.P = np.diag([std_e**2, std_psi**2 if psi is not None else 0.05])
+            return
+        if psi is None:
+            H = np.array([[1.0, 0.0]])
+            z = np.array([e])
+            R = np.array([[std_e**2]])
+        else:
+            H = np.eye(2)
+            z = np.array([e, psi])
+            R = np.diag([std_e**2, std_psi**2])
+        y = z - H @ self.x
+        S = H @ self.P @ H.T + R
+        K = self.P @ H.T @ np.linalg.inv(S)
+        self.x = self.x + K @ y
+        self.P = (np.eye(2) - K @ H) @ self.P
+
+
+@dataclass(frozen=True)
+class RowFollowerParams:
+    """Centre-line row following (SI units). ``method`` names a detector of :data:`ROW_METHODS`."""
+
+    method: str = "ransac"
+    speed_m_s: float = 0.4
+    omega_n_rad_s: float = 1.2
+    zeta: float = 0.9
+    limits: DriveLimits = field(default_factory=DriveLimits)
+    mount: Pose2D = field(default_factory=Pose2D)
+    rows: RowParams = field(default_factory=RowParams)
+    meas_std_m: float = 0.02  # detection noise at confidence 1
+    meas_std_rad: float = 0.03
+    process_std_m: float = 0.01  # per sqrt(s)
+    process_std_rad: float = 0.05
+    min_confidence: float = 0.15
+
+    def __post_init__(self) -> None:
+        if self.method not in ROW_METHODS:
+            raise ValueError(f"unknown row method {self.method!r}; known: {', '.join(ROW_METHODS)}")
+        if not (self.speed_m_s > 0 and self.omega_n_rad_s > 0 and self.zeta > 0):
+            raise ValueError("RowFollowerParams: speed, omega_n and zeta must be > 0")
+
+
+def _steer(limits: DriveLimits, v: float, e: float, psi: float, kappa: float, wn: float, zeta: float) -> DriveCommand:
+    vv = max(abs(v), 0.1)
+    w = v * kappa - 2.0 * zeta * wn * psi - (wn * wn / vv) * e
+    return limits.command(v, w)
+
+
+class RowFollower:
+    """Drive the centre line between two rows with the named detector (see the module docstring).
+
+    ``last`` holds the latest :class:`RowEstimate`; ``fill`` feeds an end-of-row detector.
+    """
+
+    def __init__(self, params: RowFollowerParams | None = None) -> None:
+        self.params = params or RowFollowerParams()
+        p = self.params
+        self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
+        self.last: RowEstimate | None = None
+
+    def reset(self) -> None:
+        p = self.params
+        self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
+        self.last = None
+
+    @property
+    def state(self) -> tuple[float, float] | None:
+        """Filtered (lateral_offset_m, heading_rad), or None before the first detection."""
+        x = self._kf.x
+        return None if x is None else (float(x[0]), float(x[1]))
+
+    def observe(self, obs: Observation) -> RowEstimate | None:
+        """Predict to ``obs.t_s`` and fold in the scan's detection; returns the raw estimate."""
+        p = self.params
+        self._kf.predict(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
+        if obs.scan is None:
+            return None
+        pts = points_from_scan(obs.scan, p.mount, p.rows.scan)
+        est = detect_rows_points(pts, p.method, p.rows)
+        self.last = est
+        if est.confidence >= p.min_confidence:
+            k = 1.0 / max(est.confidence, 0.05)
+            self._kf.update(est.lateral_offset_m, est.heading_rad if est.heading_observed else None,
+                            p.meas_std_m * k, p.meas_std_rad * k)
+        return est
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p = self.params
+        self.observe(obs)
+        st = self.state
+        if st is None:
+            return p.limits.command(0.5 * p.speed_m_s, 0.0)
+        return _steer(p.limits, p.speed_m_s, st[0], st[1], 0.0, p.omega_n_rad_s, p.zeta)
+
+
+# ---- proximity following of one row --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SingleRowEstimate:
+    """One row beside the robot: ``offset_m`` is the signed lateral position of the row's visible face
+    at the robot (left positive), ``heading_rad`` the robot's heading relative to the row (CCW
+    positive), ``curvature_1_m`` the row's curvature (left turn positive)."""
+
+    offset_m: float
+    heading_rad: float
+    curvature_1_m: float
+    confidence: float
+    n_points: int
+
+
+def detect_single_row(pts: ScanPoints, side: str, x_min_m: float = -1.0, x_max_m: float = 3.0,
+                      max_lateral_m: float = 2.5, prior: SingleRowEstimate | None = None,
+                      gate_m: float = 0.4, trim_m: float = 0.12) -> SingleRowEstimate | None:
+    """Quadratic least-squares fit ``y = a + b x + c x^2`` to the row points on ``side`` ('left' or
+    'right'), refitted twice without points more than ``trim_m`` from the curve. With a ``prior``,
+    only points within ``gate_m`` of the prior's curve are used. A quadratic keeps the fit on a
+    curved row (a straight line through a bend is off by about kappa x^2 / 2 at the robot)."""
+    sgn = 1.0 if side == "left" else -1.0
+    if side not in ("left", "right"):
+        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+    xy = pts.xy
+    x, y = xy[:, 0], xy[:, 1]
+    sel = (x >= x_min_m) & (x <= x_max_m) & (sgn * y > 0.1) & (sgn * y < max_lateral_m)
+    if prior is not None:
+        b0 = -math.tan(prior.heading_rad)
+        yp = prior.offset_m + b0 * x + 0.5 * prior.curvature_1_m * x * x
+        sel &= np.abs(y - yp) < gate_m
+    else:
+        # nearest return per 0.25 m of x: the row's near face, not what lies beyond it
+        pass
+    x, y = x[sel], y[sel]
+    if len(x) < 6:
+        return None
+    keep = np.ones(len(x), dtype=bool)
+    coef = np.zeros(3)
+    for _ in range(3):
+        if keep.sum() < 6:
+            return None
+        A = np.column_stack((np.ones(int(keep.sum())), x[keep], x[keep] ** 2))
+        coef, *_ = np.linalg.lstsq(A, y[keep], rcond=None)
+        res = y - (coef[0] + coef[1] * x + coef[2] * x * x)
+        keep = np.abs(res) < trim_m
+    a, b, c = (float(v) for v in coef)
+    n = int(keep.sum())
+    span = float(np.ptp(x[keep])) if n else 0.0
+    conf = min(1.0, n / 30.0) * min(1.0, span / 2.0)
+    return SingleRowEstimate(a * math.cos(math.atan(b)), -math.atan(b), 2.0 * c / (1.0 + b * b) ** 1.5, conf, n)
+
+
+@dataclass(frozen=True)
+class ProximityFollowerParams:
+    """Follow one row at ``distance_m`` from its centre line (ref 000 follows at 1 m).
+
+    ``row_half_width_m`` is the distance from the row's centre line to the face the laser sees (half
+    the canopy width, a field parameter); 0 follows the face itself."""
+
+    side: str = "right"  # the row is on this side of the robot
+    distance_m: float = 1.0
+    row_half_width_m: float = 0.0
+    speed_m_s: float = 0.5
+    omega_n_rad_s: float = 1.0
+    zeta: float = 0.9
+    limits: DriveLimits = field(default_factory=DriveLimits)
+    mount: Pose2D = field(default_factory=Pose2D)
+    scan: ScanParams = field(default_factory=ScanParams)
+    x_min_m: float = -1.0
+    x_max_m: float = 3.0
+    meas_std_m: float = 0.02
+    meas_std_rad: float = 0.03
+    process_std_m: float = 0.01
+    process_std_rad: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.side not in ("left", "right"):
+            raise ValueError(f"side must be 'left' or 'right', got {self.side!r}")
+        if not (self.distance_m > 0 and self.speed_m_s > 0):
+            raise ValueError("ProximityFollowerParams: distance_m and speed_m_s must be > 0")
+
+
+class ProximityFollower:
+    """Keep ``distance_m`` from one row's centre line while driving along it (module docstring law,
+    with the row's curvature as feed-forward, scaled to the parallel path)."""
+
+    def __init__(self, params: ProximityFollowerParams | None = None) -> None:
+        self.params = params or ProximityFollowerParams()
+        self.reset()
+
+    def reset(self) -> None:
+        p = self.params
+        self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
+        self.last: SingleRowEstimate | None = None
+        self._kappa = 0.0
+
+    def distance_estimate_m(self) -> float | None:
+        """Filtered distance from the row's centre line, m."""
+        x = self._kf.x
+        if x is None:
+            return None
+        return self.params.distance_m + (1.0 if self.params.side == "right" else -1.0) * float(x[0])
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p = self.params
+        sgn = 1.0 if p.side == "left" else -1.0
+        self._kf.kappa = self._kappa
+        self._kf.predict(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
+        if obs.scan is not None:
+            pts = points_from_scan(obs.scan, p.mount, p.scan)
+            est = detect_single_row(pts, p.side, p.x_min_m, p.x_max_m, prior=self.last)
+            if est is None and self.last is not None:
+                est = detect_single_row(pts, p.side, p.x_min_m, p.x_max_m)
+            if est is not None and est.confidence > 0.1:
+                self.last = est
+                centre = est.offset_m + sgn * p.row_half_width_m
+                e = -(centre - sgn * p.distance_m)  # robot left of the wanted path: positive
+                k = 1.0 / max(est.confidence, 0.05)
+                self._kf.update(e, est.heading_rad, p.meas_std_m * k, p.meas_std_rad * k)
+                kr = est.curvature_1_m
+                # parallel path at distance d: 1 / (R + d) on the outside of the bend
+                self._kappa = 0.7 * self._kappa + 0.3 * kr / max(0.2, 1.0 - sgn * kr * p.distance_m)
+        x = self._kf.x
+        if x is None:
+            return p.limits.command(0.5 * p.speed_m_s, 0.0)
+        return _steer(p.limits, p.speed_m_s, float(x[0]), float(x[1]), self._kappa, p.omega_n_rad_s, p.zeta)
+
+
+# ---- headland turn -------------------------------------------------------------------------------
+
+
+def _arc(x: float, y: float, yaw: float, radius: float, sweep: float, step: float) -> FloatArray:
+    """Poses (k, 3) along an arc of ``radius`` turning by ``sweep`` (left positive), excluding the start."""
+    n = max(1, int(math.ceil(abs(sweep) * radius / step)))
+    s = np.arange(1, n + 1) * (sweep / n)
+    sg = 1.0 if sweep > 0 else -1.0
+    cx, cy = x - sg * radius * math.sin(yaw), y + sg * radius * math.cos(yaw)
+    th = yaw + s
+    return np.column_stack((cx + sg * radius * np.sin(th), cy - sg * radius * np.cos(th), th))
+
+
+def headland_path(shift_m: float, radius_m: float, step_m: float = 0.02) -> FloatArray:
+    """A turn into the next row, in the frame of the row end: start at the origin heading +x, end at
+    (0, shift_m) heading -x (positive shift: the next row is to the left). Poses (k, 3): x_m, y_m, yaw_rad.
+
+    ``|shift| >= 2R``: a "pi" turn (quarter arc, straight, quarter arc). Otherwise an omega turn of
+    three arcs of radius R: away from the next row by beta, towards it by pi + 2 beta, away by beta,
+    with ``cos(beta) = (|shift| / (2 R) + 1) / 2`` (the path is symmetric about y = shift / 2)."""
+    if not (radius_m > 0 and abs(shift_m) > 1e-6):
+        raise ValueError("headland_path needs radius_m > 0 and a non-zero shift")
+    sg = 1.0 if shift_m > 0 else -1.0
+    d = abs(shift_m)
+    pts = [np.array([[0.0, 0.0, 0.0]])]
+    x, y, yaw = 0.0, 0.0, 0.0
+    if d >= 2.0 * radius_m:
+        segs = [(radius_m, sg * math.pi / 2, 0.0), (0.0, 0.0, d - 2.0 * radius_m), (radius_m, sg * math.pi / 2, 0.0)]
+    else:
+        beta = math.acos((d / (2.0 * radius_m) + 1.0) / 2.0)
+        segs = [(radius_m, -sg * beta, 0.0), (radius_m, sg * (math.pi + 2 * beta), 0.0), (radius_m, -sg * beta, 0.0)]
+    for r, sweep, straight in segs:
+        if straight > 0:
+            n = max(1, int(math.ceil(straight / step_m)))
+            s = np.arange(1, n + 1) * (straight / n)
+            seg = np.column_stack((x + s * math.cos(yaw), y + s * math.sin(yaw), np.full(n, yaw)))
+        else:
+            seg = _arc(x, y, yaw, r, sweep, step_m)
+        pts.append(seg)
+        x, y, yaw = (float(v) for v in seg[-1])
+    return np.vstack(pts)
+
+
+class HeadlandTurn:
+    """Pure-pursuit tracking of a :func:`headland_path` laid at the pose given to :meth:`start`.
+
+    ``done`` becomes True within ``finish_tol_m`` of the path's end. Poses come from ``obs.pose``
+    (odometry on the robot, the true pose in the simulator)."""
+
+    def __init__(self, limits: DriveLimits | None = None, speed_m_s: float = 0.3, lookahead_m: float = 0.25,
+                 finish_tol_m: float = 0.12) -> None:
+        self.limits = limits or DriveLimits()
+        self.speed_m_s, self.lookahead_m, self.finish_tol_m = speed_m_s, lookahead_m, finish_tol_m
+        self.path: FloatArray = np.zeros((0, 3))
+        self.done = False
+        self._i = 0
+
+    def reset(self) -> None:
+        self.path = np.zeros((0, 3))
+        self.done = False
+        self._i = 0
+
+    def start(self, origin: Pose2D, shift_m: float, radius_m: float | None = None) -> None:
+        """Lay the turn at ``origin`` (world pose on the current row's centre line, facing along it)."""
+        if radius_m is not None:
+            r = radius_m
+        elif self.limits.kinematics == "diff_drive":  # a plain pi turn whenever the rows allow it
+            r = max(self.limits.min_turn_radius_m, abs(shift_m) / 2.0)
+        else:  # 10 % margin on the tightest steering circle
+            r = 1.1 * self.limits.turn_radius_m
+        local = headland_path(shift_m, r)
+        c, s = math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)
+        self.path = np.column_stack((origin.x_m + c * local[:, 0] - s * local[:, 1], origin.y_m + s * local[:, 0] + c * local[:, 1],
+                                     origin.yaw_rad + local[:, 2]))
+        self.done = False
+        self._i = 0
+
+    def step(self, obs: Observation) -> DriveCommand:
+        if len(self.path) == 0 or self.done:
+            return DriveCommand()
+        pose = obs.pose
+        px, py = self.path[:, 0], self.path[:, 1]
+        # progress index: nearest point within a short window ahead of the last one
+        hi = min(len(self.path), self._i + 40)
+        d = np.hypot(px[self._i:hi] - pose.x_m, py[self._i:hi] - pose.y_m)
+        self._i += int(np.argmin(d))
+        if self._i >= len(self.path) - 3 or math.hypot(px[-1] - pose.x_m, py[-1] - pose.y_m) < self.finish_tol_m:
+            self.done = True
+            return DriveCommand()
+        dist = np.hypot(px[self._i:] - pose.x_m, py[self._i:] - pose.y_m)
+        ahead = np.nonzero(dist >= self.lookahead_m)[0]
+        j = self._i + (int(ahead[0]) if len(ahead) else len(dist) - 1)
+        dx, dy = px[j] - pose.x_m, py[j] - pose.y_m
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        ld2 = max(lx * lx + ly * ly, 1e-6)
+        kappa = 2.0 * ly / ld2
+        v = self.speed_m_s
+        if self.limits.kinematics == "diff_drive" and lx < 0:  # target behind: turn towards it on the spot
+            return self.limits.command(0.0, math.copysign(self.limits.max_yaw_rate_rad_s, ly))
+        return self.limits.command(v, v * kappa)
+
+
+@dataclass(frozen=True)
+class RowNavigatorParams:
+    """Follow a row, detect its end, turn on the headland into the next row, and repeat."""
+
+    follower: RowFollowerParams = field(default_factory=RowFollowerParams)
+    first_turn: str = "left"  # side of the first next row; turns then alternate
+    lanes_per_turn: int = 1
+    exit_m: float = 0.9  # drive on this far after the end is reported, to clear the row ends
+    turn_speed_m_s: float = 0.3
+    end_low: float = 0.25
+    end_high: float = 0.5
+    end_scans: int = 3
+
+    def __post_init__(self) -> None:
+        if self.first_turn not in ("left", "right") or self.lanes_per_turn < 1:
+            raise ValueError("RowNavigatorParams: first_turn is 'left' or 'right', lanes_per_turn >= 1")
+
+
+class RowNavigator:
+    """Row following with headland turns: states ``follow`` -> ``exit`` -> ``turn`` -> ``follow``...
+
+    ``phase`` names the state and ``turns`` counts the completed turns. Works for a differential
+    drive (pi turn) and an Ackermann robot (omega turn when the rows are closer than two turning radii)."""
+
+    def __init__(self, params: RowNavigatorParams | None = None) -> None:
+        self.params = params or RowNavigatorParams()
+        p = self.params
+        self.follower = RowFollower(p.follower)
+        self.end = RowEndDetector(p.end_low, p.end_high, p.end_scans, p.end_scans)
+        self.turn = HeadlandTurn(p.follower.limits, p.turn_speed_m_s)
+        self.reset()
+
+    def reset(self) -> None:
+        self.follower.reset()
+        self.end.reset()
+        self.turn.reset()
+        self.phase = "follow"
+        self.turns = 0
+        self._exit_origin: Pose2D | None = None
+        self._row_yaw = 0.0
+        self._lane_origin = Pose2D()
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p = self.params
+        if self.phase == "follow":
+            cmd = self.follower.step(obs)
+            est = self.follower.last
+            st = self.follower.state
+            if est is not None and self.end.update(est.fill) and st is not None:
+                e, psi = st
+                self._row_yaw = norm_angle_rad(obs.pose.yaw_rad - psi)
+                # the point on the centre line beside the robot, facing along the row
+                c, s = math.cos(self._row_yaw), math.sin(self._row_yaw)
+                self._lane_origin = Pose2D(obs.pose.x_m + s * e, obs.pose.y_m - c * e, self._row_yaw)
+                self.phase = "exit"
+            return cmd
+        if self.phase == "exit":
+            o = self._lane_origin
+            c, s = math.cos(o.yaw_rad), math.sin(o.yaw_rad)
+            dx, dy = obs.pose.x_m - o.x_m, obs.pose.y_m - o.y_m
+            along, lat = c * dx + s * dy, -s * dx + c * dy
+            if along >= p.exit_m:
+                left = (p.first_turn == "left") == (self.turns % 2 == 0)
+                shift = (1.0 if left else -1.0) * p.lanes_per_turn * self.follower.params.rows.expected_spacing_m
+                self.turn.start(Pose2D(o.x_m + c * along, o.y_m + s * along, o.yaw_rad), shift)
+                self.phase = "turn"
+            else:
+                psi = norm_angle_rad(obs.pose.yaw_rad - o.yaw_rad)
+                fp = self.follower.params
+                return _steer(fp.limits, p.turn_speed_m_s, lat, psi, 0.0, fp.omega_n_rad_s, fp.zeta)
+        if self.phase == "turn":
+            cmd = self.turn.step(obs)
+            if not self.turn.done:
+                return cmd
+            self.turns += 1
+            self.follower.reset()
+            self.end.reset()
+            self.phase = "follow"
+        return self.follower.step(obs)

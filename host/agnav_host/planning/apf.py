@@ -1,0 +1,191 @@
+"""APF: the artificial-potential-field waypoint controller of ref 001 with passive motion safety.
+
+With d the distance and alpha the bearing of the current waypoint (ref 001 eqs. 2-4):
+
+    u = 0                       d <= d_min      (waypoint reached; d_min = 0.3 m in ref 001)
+    u = min(katt d^2 / 2, umax)  d_min < d < d_max
+    u = umax                    d >= d_max       (eq. 13)
+    r = Ka alpha + krep / d_obs               |alpha| <  alpha_max (eq. 12)
+    r = +-r_max and u = 0                     |alpha| >= alpha_max (turn on the spot, eq. 14)
+
+d_obs is the clearance to the nearest laser return within ``side_span_rad`` of the nose, and is
+taken as infinite beyond ``d_obs_threshold_m`` (eq. 11), so the repulsive term vanishes; the term
+turns the robot away from that return's side (ref 001 applies it to obstacles beside the robot; a
+return inside the front cone pushes towards the more open side of the front, and while the front
+is obstructed that side is kept and the waypoint's pull is added to the turn instead of fighting it,
+so the robot contours the obstacle rather than settling in front of it; contouring ends when the
+straight way to the waypoint is free again; a second passive-safety stop while contouring switches
+to the other side). The speed is also
+scaled down as the clearance ahead shrinks, so that passive safety stays the exception. The sign of the repulsion and the waypoint's
+choice of side are our reading: the paper gives krep / d_obs as a magnitude only.
+
+A return inside the front cone (``front_cone_rad``) closer than ``stop_m`` while driving forward
+starts passive motion safety (ref 001, mirrored from the firmware's avoid layer): stop for
+``stop_s``, back off ``backoff_m`` at ``backoff_speed_m_s``, wait ``wait_s`` (turning on the spot is
+allowed while waiting, which lets the robot creep round a wall it faces), then resume. Waypoint
+sequences come from the scenario: the simulator hands the next waypoint over as ``obs.goal``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from ..types import DriveCommand, Observation
+from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
+
+__all__ = ["ApfParams", "ApfPlanner", "apf_linear", "apf_angular", "SafetyState"]
+
+
+class SafetyState(IntEnum):
+    CLEAR = 0
+    STOP = 1
+    BACKOFF = 2
+    WAIT = 3
+
+
+@dataclass(frozen=True)
+class ApfParams:
+    katt: float = 1.0
+    umax_m_s: float | None = None  # None: the robot's max speed
+    d_min_m: float = 0.3
+    d_max_m: float | None = None  # None: where katt d^2 / 2 reaches umax
+    ka: float = 1.2
+    krep: float = 0.06
+    d_obs_threshold_m: float = 0.5
+    side_span_rad: float = math.radians(135.0)
+    alpha_max_rad: float = math.radians(60.0)
+    r_max_rad_s: float | None = None  # None: 0.8 x the robot's max yaw rate
+    front_cone_rad: float = math.radians(30.0)
+    stop_m: float = 0.12
+    stop_s: float = 0.2
+    backoff_m: float = 0.05
+    backoff_speed_m_s: float = 0.1
+    wait_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.katt > 0 and self.d_min_m >= 0 and self.ka > 0 and self.krep >= 0 and self.d_obs_threshold_m > 0):
+            raise ValueError("ApfParams: katt > 0, d_min >= 0, Ka > 0, krep >= 0, d_obs_threshold > 0")
+        if not 0 < self.alpha_max_rad <= math.pi:
+            raise ValueError("ApfParams.alpha_max_rad must be in (0, pi]")
+
+
+def apf_linear(d_m: float, katt: float, umax: float, d_min_m: float, d_max_m: float) -> float:
+    """Saturated attractive speed u(d) of ref 001 eq. 13, m/s."""
+    if d_m <= d_min_m:
+        return 0.0
+    if d_m >= d_max_m:
+        return umax
+    return min(0.5 * katt * d_m * d_m, umax)
+
+
+def apf_angular(alpha_rad: float, d_obs_m: float, obs_sign: float, ka: float, krep: float, alpha_max_rad: float,
+                r_max: float) -> tuple[float, bool]:
+    """(r, turn_in_place) of ref 001 eqs. 12 and 14. ``d_obs_m`` is inf when nothing is near;
+    ``obs_sign`` is +1 to turn left (obstacle on the right), -1 to turn right."""
+    if abs(alpha_rad) >= alpha_max_rad:
+        return (r_max if alpha_rad >= 0 else -r_max), True
+    rep = 0.0 if math.isinf(d_obs_m) else obs_sign * krep / max(d_obs_m, 1e-3)
+    r = ka * alpha_rad + rep
+    return max(-r_max, min(r_max, r)), False
+
+
+class ApfPlanner:
+    name = "apf"
+    uses_sonar = False
+    params_cls = ApfParams
+
+    def __init__(self, spec: RobotSpec, params: ApfParams | None = None) -> None:
+        self.spec = spec
+        self.params = params or ApfParams()
+        p = self.params
+        self.umax = p.umax_m_s if p.umax_m_s is not None else spec.max_speed_m_s
+        self.d_max = p.d_max_m if p.d_max_m is not None else math.sqrt(2.0 * self.umax / p.katt)
+        self.r_max = p.r_max_rad_s if p.r_max_rad_s is not None else 0.8 * spec.max_yaw_rate_rad_s
+        self.reset()
+
+    def reset(self) -> None:
+        self.state = SafetyState.CLEAR
+        self._contour = 0.0
+        self._stops_in_contour = 0
+        self._t_state = 0.0
+        self._backed = 0.0
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p, spec = self.params, self.spec
+        dt = spec.control_dt_s
+        view = local_view(obs, spec)
+        d, alpha = goal_in_robot_frame(obs)
+        # nearest return within the side span -> d_obs and the side to turn to
+        d_obs, sign = math.inf, 0.0
+        front = False
+        front_clr = math.inf
+        if len(view.range_m):
+            clr = view.range_m - spec.radius_m
+            b = view.bearing_rad
+            m = np.abs(b) <= p.side_span_rad
+            if m.any():
+                i = int(np.argmin(np.where(m, clr, np.inf)))
+                if clr[i] < p.d_obs_threshold_m:
+                    d_obs = float(clr[i])
+                    bi = float(b[i])
+                    if abs(bi) > p.front_cone_rad:
+                        sign = -1.0 if bi > 0 else 1.0
+                    else:  # ahead: turn to the more open side of the front, and keep that side
+                        if self._contour == 0.0:
+                            self._contour = 1.0 if view.sector_min(0.0, 1.2, 9.0) >= view.sector_min(-1.2, 0.0, 9.0) else -1.0
+                        sign = self._contour
+            cone = np.abs(b) <= p.front_cone_rad
+            front_clr = float(clr[cone].min()) if cone.any() else math.inf
+            front = front_clr < p.stop_m
+        if self._contour != 0.0:  # contour until the straight way to the waypoint is free
+            need = min(d, 1.5)
+            if float(free_distances_m(view.xy, np.array([alpha]), spec.radius_m + 0.05, need)[0]) >= need - 1e-6:
+                self._contour = 0.0
+        u = apf_linear(d, p.katt, self.umax, p.d_min_m, self.d_max)
+        if self._contour != 0.0:
+            # contouring: the waypoint's pull must not fight the turn away from an obstacle ahead, and
+            # no turning on the spot back towards it until the way is free
+            spin = False
+            if front_clr < p.d_obs_threshold_m:
+                r = self._contour * min(self.r_max, p.ka * abs(alpha) + p.krep / max(d_obs, 1e-3))
+            else:
+                r = 0.0 if math.isinf(d_obs) else sign * min(self.r_max, p.krep / max(d_obs, 1e-3))
+            u = self.umax * min(1.0, max(0.0, front_clr - p.stop_m) / p.d_obs_threshold_m + 0.2)
+        else:
+            r, spin = apf_angular(alpha, d_obs, sign, p.ka, p.krep, p.alpha_max_rad, self.r_max)
+        if spin:
+            u = 0.0
+        elif self._contour == 0.0:  # slow down towards an obstacle ahead so that passive safety is the exception
+            u *= max(0.0, math.cos(alpha)) * min(1.0, max(0.0, front_clr - p.stop_m) / p.d_obs_threshold_m + 0.2,
+                                                 (d_obs if d_obs < math.inf else 9.0) / p.d_obs_threshold_m + 0.2)
+        # passive motion safety
+        forward = u > 0.0 or obs.speed_m_s > 0.02
+        self._t_state += dt
+        if self.state == SafetyState.WAIT and self._t_state >= p.wait_s:
+            self.state = SafetyState.CLEAR
+        if self.state == SafetyState.CLEAR:
+            if not (front and forward):
+                return drive_command(spec, u, r)
+            self.state, self._t_state = SafetyState.STOP, 0.0
+            self._stops_in_contour = self._stops_in_contour + 1 if self._contour != 0.0 else 0
+            if self._stops_in_contour >= 2:  # this side leads into another obstacle: contour the other way
+                self._contour, self._stops_in_contour = -self._contour, 0
+        if self.state == SafetyState.STOP and self._t_state >= p.stop_s and abs(obs.speed_m_s) <= 0.02:
+            self.state, self._t_state, self._backed = SafetyState.BACKOFF, 0.0, 0.0
+        if self.state == SafetyState.BACKOFF:
+            self._backed += abs(obs.speed_m_s) * dt
+            cap = 2.0 * p.backoff_m / p.backoff_speed_m_s + 0.2
+            if self._backed >= p.backoff_m or self._t_state >= cap:
+                self.state, self._t_state = SafetyState.WAIT, 0.0
+            else:
+                return drive_command(spec, -p.backoff_speed_m_s, 0.0)
+        if self.state == SafetyState.WAIT:  # turn on the spot towards the more open side (ref 001 sec. 3.4)
+            if front_clr < p.d_obs_threshold_m:
+                side = 1.0 if view.sector_min(0.0, 1.2, 9.0) >= view.sector_min(-1.2, 0.0, 9.0) else -1.0
+                return drive_command(spec, 0.0, 0.5 * self.r_max * side)
+            return drive_command(spec, 0.0, r)
+        return drive_command(spec, 0.0, 0.0)

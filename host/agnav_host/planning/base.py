@@ -1,0 +1,288 @@
+"""Planner interface shared by every host planner (no implementations here).
+
+A planner turns one :class:`~agnav_host.types.Observation` (pose, current goal, laser scan and/or
+sonar ring, optional tracked obstacles in ``obs.extras["obstacles"]``) into one
+:class:`~agnav_host.types.DriveCommand`. Planners are built from a :class:`RobotSpec` (what the
+robot is and can do) through :mod:`agnav_host.planning.registry`; ``reset()`` clears all run state
+and ``step()`` is called once per control period.
+
+Goals carry an optional ``arrival_s``; a timed planner reads it together with ``obs.t_s``, so the
+same protocol serves it. Observation extras a planner may use (all optional):
+
+``goals``       list[Goal], the whole mission, in order
+``goal_index``  int, index of ``obs.goal`` in ``goals``
+``path``        (n, 2) array, a planned path in the world frame, m
+``obstacles``   (n, 3) array of circles (cx, cy, radius) in the world frame, m (perception tracks)
+``meta``        the scenario's ``[meta]`` table
+
+Frames: REP-103, x forward, y left, angles CCW positive; SI units everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ..types import DriveCommand, FloatArray, Goal, Observation, ScanXY, norm_angle_rad
+
+__all__ = [
+    "Planner",
+    "GoalChecker",
+    "DistanceGoalChecker",
+    "RobotSpec",
+    "PlanningError",
+    "NoPathFound",
+    "DeadlineMissed",
+    "InvalidObservation",
+    "UnknownPlanner",
+    "LocalView",
+    "local_view",
+    "goal_in_robot_frame",
+    "drive_command",
+    "free_distances_m",
+    "clip",
+]
+
+
+# ---- errors ------------------------------------------------------------------------------------
+
+
+class PlanningError(Exception):
+    """Base of every planning failure."""
+
+
+class NoPathFound(PlanningError):
+    """The planner proved there is no way to the goal from what it knows."""
+
+
+class DeadlineMissed(PlanningError):
+    """A bounded computation ran out of its time or iteration budget."""
+
+
+class InvalidObservation(PlanningError):
+    """The observation lacks what the planner needs (e.g. no scan for a laser planner)."""
+
+
+class UnknownPlanner(PlanningError, ValueError):
+    """A planner name that the registry does not know; the message lists the known names."""
+
+
+# ---- protocols ---------------------------------------------------------------------------------
+
+
+@runtime_checkable
+class Planner(Protocol):
+    """Observation -> DriveCommand. ``name`` is the registry name."""
+
+    name: str
+
+    def reset(self) -> None: ...
+
+    def step(self, obs: Observation) -> DriveCommand: ...
+
+
+class GoalChecker(Protocol):
+    def reached(self, obs: Observation) -> bool: ...
+
+
+@dataclass(frozen=True)
+class DistanceGoalChecker:
+    """Reached when the reference point is within the goal's own ``tolerance_m``."""
+
+    def reached(self, obs: Observation) -> bool:
+        return math.hypot(obs.goal.x_m - obs.pose.x_m, obs.goal.y_m - obs.pose.y_m) <= obs.goal.tolerance_m
+
+
+# ---- robot description -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """What a planner needs to know about the robot (SI units).
+
+    ``kinematics`` is ``"diff_drive"`` or ``"ackermann"``. ``footprint_offset_m``: the footprint
+    disc's centre ahead of the reference point (Ackermann: half the wheelbase). Sonar fields describe
+    the ring (bearings of sensor i = i * spacing); ``control_dt_s`` is the planner period.
+    """
+
+    kinematics: str = "diff_drive"
+    radius_m: float = 0.225
+    max_speed_m_s: float = 0.5
+    min_speed_m_s: float = 0.0
+    max_yaw_rate_rad_s: float = 1.2
+    max_accel_m_s2: float = 1.0
+    track_m: float = 0.4
+    wheelbase_m: float = 0.174
+    max_steer_rad: float = math.radians(24.6)
+    footprint_offset_m: float = 0.0
+    control_dt_s: float = 1.0 / 15.0
+    sonar_count: int = 12
+    sonar_spacing_rad: float = math.radians(30.0)
+    sonar_mount_radius_m: float = 0.225
+    sonar_max_range_m: float = 4.0
+
+    def __post_init__(self) -> None:
+        if self.kinematics not in ("diff_drive", "ackermann"):
+            raise ValueError(f"RobotSpec.kinematics must be 'diff_drive' or 'ackermann', got {self.kinematics!r}")
+        for k in ("radius_m", "max_speed_m_s", "max_yaw_rate_rad_s", "control_dt_s", "max_accel_m_s2"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"RobotSpec.{k} must be > 0, got {getattr(self, k)}")
+
+
+def clip(v: float, lo: float, hi: float) -> float:
+    return lo if v < lo else hi if v > hi else v
+
+
+def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float) -> DriveCommand:
+    """A (speed, yaw rate) wish turned into the robot's command, limits applied.
+
+    Differential drive: speed and yaw rate clipped. Ackermann: the yaw rate becomes the virtual
+    front-wheel angle ``atan(L w / v)`` (no turning on the spot: a stop keeps the wheel angle)."""
+    v = clip(speed_m_s, -spec.max_speed_m_s, spec.max_speed_m_s)
+    w = clip(yaw_rate_rad_s, -spec.max_yaw_rate_rad_s, spec.max_yaw_rate_rad_s)
+    if spec.kinematics == "diff_drive":
+        return DriveCommand(v, w)
+    if v > 0.0:
+        v = max(v, spec.min_speed_m_s)
+    steer = math.atan2(spec.wheelbase_m * w, max(abs(v), 0.2))
+    return DriveCommand(v, 0.0, clip(steer, -spec.max_steer_rad, spec.max_steer_rad))
+
+
+# ---- geometry helpers --------------------------------------------------------------------------
+
+
+def goal_in_robot_frame(obs: Observation, goal: Goal | None = None) -> tuple[float, float]:
+    """(distance m, bearing rad) of the goal from the robot's reference point and heading."""
+    g = obs.goal if goal is None else goal
+    dx, dy = g.x_m - obs.pose.x_m, g.y_m - obs.pose.y_m
+    return math.hypot(dx, dy), norm_angle_rad(math.atan2(dy, dx) - obs.pose.yaw_rad)
+
+
+@dataclass(frozen=True)
+class LocalView:
+    """Obstacle points around the robot, robot frame (origin at the footprint centre, x forward).
+
+    ``xy`` (k, 2) m; ``range_m`` (k,) distance from the footprint centre, m; ``bearing_rad`` (k,)
+    sorted ascending. ``no_return_rad`` holds the bearings of laser beams without a return (open
+    directions), rad.
+    """
+
+    xy: ScanXY
+    range_m: FloatArray
+    bearing_rad: FloatArray
+    no_return_rad: FloatArray
+
+    def sector_min(self, lo_rad: float, hi_rad: float, default: float) -> float:
+        """Smallest range among points with bearing in [lo, hi], m; ``default`` when none."""
+        i0 = int(np.searchsorted(self.bearing_rad, lo_rad, "left"))
+        i1 = int(np.searchsorted(self.bearing_rad, hi_rad, "right"))
+        return float(self.range_m[i0:i1].min()) if i1 > i0 else default
+
+
+_TRIG_CACHE: dict[tuple[float, float, int], tuple[FloatArray, FloatArray, FloatArray]] = {}
+
+
+def _trig(a0: float, inc: float, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    key = (a0, inc, n)
+    t = _TRIG_CACHE.get(key)
+    if t is None:
+        a = a0 + inc * np.arange(n)
+        t = (a, np.cos(a), np.sin(a))
+        if len(_TRIG_CACHE) > 32:
+            _TRIG_CACHE.clear()
+        _TRIG_CACHE[key] = t
+    return t
+
+
+def local_view(obs: Observation, spec: RobotSpec, use_laser: bool = True, use_sonar: bool = False,
+               use_tracks: bool = True, resolution_rad: float = math.radians(1.0)) -> LocalView:
+    """Gather the laser returns (and/or sonar ranges, tracked obstacle circles) as robot-frame points.
+
+    Laser beams finer than ``resolution_rad`` are grouped and only the nearest return of each group
+    is kept (a 1/3 deg TiM561 scan becomes 270 points), which bounds every planner's work per step.
+    Raises :class:`InvalidObservation` when a requested sensor is missing from ``obs``.
+    """
+    chunks: list[FloatArray] = []
+    no_ret = np.zeros(0)
+    c0, s0 = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
+    off = spec.footprint_offset_m
+    if use_laser:
+        scan = obs.scan
+        if scan is None:
+            raise InvalidObservation("this planner needs a laser scan (obs.scan is None)")
+        r = scan.ranges_m
+        a, ca, sa = _trig(scan.angle_min_rad, scan.angle_increment_rad, len(r))
+        k = int(resolution_rad / abs(scan.angle_increment_rad) + 1e-9) if scan.angle_increment_rad else 1
+        if k > 1 and len(r) >= k:
+            m = (len(r) // k) * k
+            g = np.where(np.isfinite(r[:m]) & (r[:m] > 0.0), r[:m], np.inf).reshape(-1, k)
+            pick = np.arange(0, m, k) + g.argmin(axis=1)
+            r, a, ca, sa = r[pick], a[pick], ca[pick], sa[pick]
+        sp = scan.pose if scan.pose is not None else obs.pose
+        # sensor pose relative to the robot reference point, robot frame
+        dx, dy = sp.x_m - obs.pose.x_m, sp.y_m - obs.pose.y_m
+        mx, my = c0 * dx + s0 * dy - off, -s0 * dx + c0 * dy
+        dyaw = norm_angle_rad(sp.yaw_rad - obs.pose.yaw_rad)
+        ok = np.isfinite(r) & (r > 0.0)
+        if not ok.all():
+            no_ret = norm_angle_rad_arr(a[~ok] + dyaw)
+        rr = r[ok]
+        if dyaw == 0.0:
+            px, py = rr * ca[ok], rr * sa[ok]
+        else:
+            cd, sd = math.cos(dyaw), math.sin(dyaw)
+            lx, ly = rr * ca[ok], rr * sa[ok]
+            px, py = cd * lx - sd * ly, sd * lx + cd * ly
+        chunks.append(np.column_stack((px + mx, py + my)))
+    if use_sonar:
+        son = obs.sonar
+        if son is None:
+            raise InvalidObservation("this planner needs a sonar frame (obs.sonar is None)")
+        rng = np.asarray(son.ranges_m, dtype=float)
+        b = spec.sonar_spacing_rad * np.arange(len(rng))
+        ok = np.isfinite(rng)
+        d = rng[ok] + spec.sonar_mount_radius_m
+        chunks.append(np.column_stack((d * np.cos(b[ok]) - off, d * np.sin(b[ok]))))
+    if use_tracks:
+        circ = obs.extras.get("obstacles")
+        if circ is not None and len(circ):  # type: ignore[arg-type]
+            c = np.asarray(circ, dtype=float).reshape(-1, 3)
+            ang = np.linspace(0.0, 2.0 * math.pi, 12, endpoint=False)
+            wx = (c[:, 0:1] + c[:, 2:3] * np.cos(ang)).ravel() - obs.pose.x_m
+            wy = (c[:, 1:2] + c[:, 2:3] * np.sin(ang)).ravel() - obs.pose.y_m
+            chunks.append(np.column_stack((c0 * wx + s0 * wy - off, -s0 * wx + c0 * wy)))
+    xy = np.concatenate(chunks) if len(chunks) > 1 else (chunks[0] if chunks else np.zeros((0, 2)))
+    rng_m = np.hypot(xy[:, 0], xy[:, 1])
+    bear = np.arctan2(xy[:, 1], xy[:, 0])
+    order = np.argsort(bear, kind="stable")
+    return LocalView(xy[order], rng_m[order], bear[order], no_ret)
+
+
+def norm_angle_rad_arr(a: FloatArray) -> FloatArray:
+    """Element-wise wrap to [-pi, pi), rad."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:
+    """How far a disc of radius ``half_width_m`` at the origin can travel straight along each direction.
+
+    ``points_xy`` (k, 2) robot frame, m; ``directions_rad`` (d,). Returns (d,) m, capped at ``horizon_m``.
+    """
+    d = np.asarray(directions_rad, dtype=float)
+    out = np.full(len(d), horizon_m)
+    if len(points_xy) == 0:
+        return out
+    near = points_xy[(np.abs(points_xy[:, 0]) < horizon_m + half_width_m) & (np.abs(points_xy[:, 1]) < horizon_m + half_width_m)]
+    if len(near) == 0:
+        return out
+    ux, uy = np.cos(d)[:, None], np.sin(d)[:, None]
+    px, py = near[None, :, 0], near[None, :, 1]
+    along = px * ux + py * uy
+    lat = np.abs(px * uy - py * ux)
+    block = (lat < half_width_m) & (along > -half_width_m)
+    dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
+    dist = np.where(block, np.maximum(dist, 0.0), np.inf)
+    return np.minimum(out, dist.min(axis=1))

@@ -1,0 +1,190 @@
+"""Geometric path through boundary states, built from the ref-003 polynomials.
+
+AgNav separates *where* (this module) from *when* (:mod:`._profile`). Each leg between two states is
+the ref-003 pair x(u) cubic / y(u) quintic over a normalised parameter u in [0, 1], written in the
+frame of the leg's chord, with the tangent length ``lam`` playing the role of the speed in 003's
+boundary conditions. The geometry of a polynomial trajectory depends only on these tangent lengths,
+so AgNav tries a few and keeps the one with the smallest peak curvature (the smallest steering
+angle). The time law that the car can really drive (speed 0 or in the calibrated band, acceleration
+limited) is then laid along the arc length. That is the "or better" over driving the polynomials in
+time directly: 003's x(t), y(t) start and stop at rest, so their speed passes through the dead band
+the RC car cannot drive (below 43.5 cm/s) at both ends.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...types import FloatArray, norm_angle_rad
+from ._poly import BoundaryState, hermite5_coeffs, poly003_coeffs
+
+__all__ = ["GeoPath", "build_path", "LAMBDA_SCALES"]
+
+#: tangent lengths tried per leg, as multiples of the chord length
+LAMBDA_SCALES = (1.0, 0.75, 1.35, 1.8)
+_MAX_REL_003_RAD = math.radians(60.0)  # chord-frame end headings beyond this use the quintic pair
+
+
+@dataclass(frozen=True)
+class GeoPath:
+    """A sampled planar path. ``xy`` (n, 2) m, ``yaw`` (n,) rad (unwrapped, so interpolation is
+    safe), ``kappa`` (n,) 1/m (+ = left), ``s`` (n,) arc length from the start, m. ``forms`` names the
+    polynomial form used on each leg ("003" or "hermite5"); ``knots_s`` the arc length of each
+    boundary state."""
+
+    xy: FloatArray
+    yaw: FloatArray
+    kappa: FloatArray
+    s: FloatArray
+    forms: tuple[str, ...]
+    knots_s: tuple[float, ...]
+
+    @property
+    def length_m(self) -> float:
+        return float(self.s[-1])
+
+    @property
+    def max_abs_kappa(self) -> float:
+        return float(np.max(np.abs(self.kappa))) if len(self.kappa) else 0.0
+
+    def sample(self, s_m: FloatArray | float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(x, y, yaw, kappa) at arc lengths ``s_m``. Beyond the end the path continues straight
+        along the final heading (the tracker looks ahead past the goal)."""
+        s = np.asarray(s_m, dtype=float)
+        sc = np.clip(s, 0.0, self.s[-1])
+        x = np.interp(sc, self.s, self.xy[:, 0])
+        y = np.interp(sc, self.s, self.xy[:, 1])
+        yaw = np.interp(sc, self.s, self.yaw)
+        k = np.interp(sc, self.s, self.kappa)
+        extra = s - sc
+        if np.any(extra != 0.0):
+            x = x + extra * np.cos(yaw)
+            y = y + extra * np.sin(yaw)
+        return x, y, yaw, k
+
+    def project(self, x_m: float, y_m: float, hint_s_m: float = 0.0, window_m: float = 2.0) -> tuple[float, float]:
+        """(arc length, signed lateral offset + = left) of the nearest path point to (x, y), searched
+        within ``window_m`` around ``hint_s_m`` (keeps a loop-free answer on self-approaching paths)."""
+        i0 = int(np.searchsorted(self.s, hint_s_m - window_m))
+        i1 = int(np.searchsorted(self.s, hint_s_m + window_m)) + 1
+        i0, i1 = max(0, i0 - 1), min(len(self.s), i1 + 1)
+        p = self.xy[i0:i1]
+        if len(p) < 2:
+            p = self.xy
+            i0 = 0
+        a, b = p[:-1], p[1:]
+        ab = b - a
+        L2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+        q = np.array([x_m, y_m])
+        u = np.clip(np.einsum("ij,ij->i", q - a, ab) / L2, 0.0, 1.0)
+        proj = a + u[:, None] * ab
+        d2 = np.einsum("ij,ij->i", q - proj, q - proj)
+        k = int(np.argmin(d2))
+        s0 = float(self.s[i0 + k] + u[k] * (self.s[i0 + k + 1] - self.s[i0 + k]))
+        # past the end: measure along the final heading
+        if k == len(ab) - 1 and u[k] >= 1.0 and i0 + k + 1 == len(self.s) - 1:
+            yaw = float(self.yaw[-1])
+            dx, dy = x_m - self.xy[-1, 0], y_m - self.xy[-1, 1]
+            along = dx * math.cos(yaw) + dy * math.sin(yaw)
+            lat = -dx * math.sin(yaw) + dy * math.cos(yaw)
+            return s0 + max(along, 0.0), lat
+        yaw = float(np.interp(s0, self.s, self.yaw))
+        dx, dy = x_m - proj[k, 0], y_m - proj[k, 1]
+        return s0, -dx * math.sin(yaw) + dy * math.cos(yaw)
+
+
+def _leg_coeffs(a: BoundaryState, b: BoundaryState, lam: float, wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
+    sa = BoundaryState(a.x_m, a.y_m, a.yaw_rad, a.steer_rad, lam)
+    sb = BoundaryState(b.x_m, b.y_m, b.yaw_rad, b.steer_rad, lam)
+    if form == "003":
+        cx, cy = poly003_coeffs(sa, sb, 1.0, wheelbase_m, min_cos=0.05)
+        return np.concatenate((cx, [0.0, 0.0])), cy  # pad the cubic to 6 coefficients
+    return hermite5_coeffs(sa, sb, 1.0, wheelbase_m)
+
+
+_BASIS: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+
+
+def _basis(n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Value, first and second derivative bases (n, 6) of degree-5 polynomials on linspace(0, 1, n)."""
+    b = _BASIS.get(n)
+    if b is None:
+        u = np.linspace(0.0, 1.0, n)
+        k = np.arange(6)
+        up = u[:, None] ** np.maximum(k - 2, 0)[None, :]
+        v0 = u[:, None] ** k[None, :]
+        v1 = np.zeros((n, 6))
+        v1[:, 1:] = k[1:] * (u[:, None] ** (k[1:] - 1))
+        v2 = np.zeros((n, 6))
+        v2[:, 2:] = (k[2:] * (k[2:] - 1)) * up[:, 2:]
+        b = (v0, v1, v2)
+        if len(_BASIS) > 256:
+            _BASIS.clear()
+        _BASIS[n] = b
+    return b
+
+
+def _eval_leg(cx: FloatArray, cy: FloatArray, n: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(x, y, |P'|, kappa, heading) at n equally spaced parameters; cx, cy (6,) or (6, m) for m
+    candidates at once (then every output is (n, m))."""
+    v0, v1, v2 = _basis(n)
+    x, y = v0 @ cx, v0 @ cy
+    xd, yd = v1 @ cx, v1 @ cy
+    xdd, ydd = v2 @ cx, v2 @ cy
+    sp = np.hypot(xd, yd)
+    kappa = (xd * ydd - yd * xdd) / np.maximum(sp, 1e-12) ** 3
+    return x, y, sp, kappa, np.arctan2(yd, xd)
+
+
+def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float = 0.05) -> GeoPath:
+    """Path through ``states`` (>= 2; headings and steering angles are honoured at each, speeds are
+    ignored). Each leg is solved in its chord frame with the tangent length from :data:`LAMBDA_SCALES`
+    that gives the smallest peak curvature. Raises ValueError for coincident consecutive states."""
+    if len(states) < 2:
+        raise ValueError("a path needs at least two states")
+    xs: list[FloatArray] = []
+    ys: list[FloatArray] = []
+    ks: list[FloatArray] = []
+    hs: list[FloatArray] = []
+    forms: list[str] = []
+    for a, b in zip(states[:-1], states[1:]):
+        dx, dy = b.x_m - a.x_m, b.y_m - a.y_m
+        chord = math.hypot(dx, dy)
+        if chord < 1e-6:
+            raise ValueError(f"two consecutive path states coincide at ({a.x_m:.3f}, {a.y_m:.3f})")
+        c_yaw = math.atan2(dy, dx)
+        cc, sc = math.cos(c_yaw), math.sin(c_yaw)
+        ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
+        rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
+        form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
+        cands = [_leg_coeffs(ra, rb, scale * chord, wheelbase_m, form) for scale in LAMBDA_SCALES]
+        CX = np.column_stack([c[0] for c in cands])
+        CY = np.column_stack([c[1] for c in cands])
+        _, _, sp, kap, _ = _eval_leg(CX, CY, 41)
+        ok = sp.min(axis=0) >= 1e-3 * chord  # no cusp
+        if not ok.any():
+            raise ValueError("no cusp-free polynomial leg between the states")
+        peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
+        j = int(np.argmin(peak))
+        cx, cy = CX[:, j], CY[:, j]
+        n = int(min(max(math.ceil(chord / spacing_m / 20.0) * 20, 40), 1500))  # quantised: reuses bases
+        lx, ly, _, kap, hd = _eval_leg(cx, cy, n + 1)
+        wx, wy = a.x_m + cc * lx - sc * ly, a.y_m + sc * lx + cc * ly
+        hd = hd + c_yaw
+        if xs:  # drop the duplicated joint
+            wx, wy, kap, hd = wx[1:], wy[1:], kap[1:], hd[1:]
+        xs.append(wx)
+        ys.append(wy)
+        ks.append(kap)
+        hs.append(hd)
+        forms.append(form)
+    x, y, kappa = np.concatenate(xs), np.concatenate(ys), np.concatenate(ks)
+    yaw = np.unwrap(np.concatenate(hs))
+    seg = np.hypot(np.diff(x), np.diff(y))
+    s = np.concatenate(([0.0], np.cumsum(seg)))
+    ends = np.cumsum([len(h) for h in hs]) - 1
+    knots = (0.0,) + tuple(float(s[i]) for i in ends)
+    return GeoPath(np.column_stack((x, y)), yaw, kappa, s, tuple(forms), knots)

@@ -1,0 +1,279 @@
+"""Timed plans: a ref-003 polynomial path plus a drivable speed profile that ends at the set time."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ...calib import SPEED_MAX_CM_S, SPEED_MIN_CM_S
+from ...types import FloatArray, norm_angle_rad
+from ..base import DeadlineMissed, RobotSpec
+from ._path import GeoPath, build_path
+from ._poly import BoundaryState
+from ._profile import LegInfeasible, SpeedLimits, SpeedProfile, concat_profiles, leg_min_time_s, solve_leg
+
+__all__ = ["TimedLimits", "TimedPlan", "plan_timed", "via_state", "check_deadline"]
+
+
+@dataclass(frozen=True)
+class TimedLimits:
+    """What a timed plan must respect (SI). Defaults: the ref-003 RC car.
+
+    ``max_steer_rad`` is the largest steering angle ever *commanded* (20 deg, below the 24.6 deg the
+    servo reaches); ``plan_steer_rad`` the largest a plan may use, leaving the difference to the
+    tracking law for corrections. The speed band is the calibrated one (43.5-200 cm/s) and
+    ``accel_m_s2`` the acceleration the plan may ask for. ``radius_m`` / ``footprint_offset_m``: the
+    footprint disc and its centre ahead of the rear axle (half the 174 mm wheelbase)."""
+
+    wheelbase_m: float = 0.174
+    max_steer_rad: float = math.radians(20.0)
+    plan_steer_rad: float = math.radians(17.0)
+    v_min_m_s: float = SPEED_MIN_CM_S / 100.0
+    v_max_m_s: float = SPEED_MAX_CM_S / 100.0
+    accel_m_s2: float = 1.0
+    cruise_m_s: float = 0.8  # speed of untimed plans (no arrival time given)
+    radius_m: float = 0.16
+    footprint_offset_m: float = 0.087
+
+    def __post_init__(self) -> None:
+        if not 0 < self.plan_steer_rad <= self.max_steer_rad < math.pi / 2:
+            raise ValueError("need 0 < plan_steer_rad <= max_steer_rad < 90 deg")
+        if not 0 < self.wheelbase_m:
+            raise ValueError("wheelbase_m must be > 0")
+        SpeedLimits(self.v_min_m_s, self.v_max_m_s, self.accel_m_s2)  # validates the band
+
+    @property
+    def speed(self) -> SpeedLimits:
+        return SpeedLimits(self.v_min_m_s, self.v_max_m_s, self.accel_m_s2)
+
+    @property
+    def plan_kappa_max(self) -> float:
+        return math.tan(self.plan_steer_rad) / self.wheelbase_m
+
+    @staticmethod
+    def from_spec(spec: RobotSpec, **over: Any) -> "TimedLimits":
+        """Limits of a planner's robot: band floor from the speed table (spec.min_speed_m_s, or the
+        calibrated 43.5 cm/s when the spec has none), top from spec.max_speed_m_s, steering at most
+        20 deg and never beyond the servo's spec.max_steer_rad."""
+        vmin = spec.min_speed_m_s if spec.min_speed_m_s > 0 else SPEED_MIN_CM_S / 100.0
+        vmax = min(spec.max_speed_m_s, SPEED_MAX_CM_S / 100.0)
+        steer = min(math.radians(20.0), spec.max_steer_rad)
+        kw: dict[str, Any] = dict(wheelbase_m=spec.wheelbase_m, max_steer_rad=steer, plan_steer_rad=min(math.radians(17.0), steer),
+                                  v_min_m_s=vmin, v_max_m_s=max(vmax, vmin + 0.05), accel_m_s2=min(1.0, spec.max_accel_m_s2),
+                                  cruise_m_s=max(vmin, 0.8 * vmax), radius_m=spec.radius_m, footprint_offset_m=spec.footprint_offset_m)
+        kw.update(over)
+        return TimedLimits(**kw)
+
+
+def check_deadline(deadline: float | None, what: str) -> None:
+    """Raise :class:`DeadlineMissed` when the perf_counter time ``deadline`` has passed."""
+    if deadline is not None and time.perf_counter() > deadline:
+        raise DeadlineMissed(f"{what}: planning budget exhausted")
+
+
+@dataclass(frozen=True)
+class TimedPlan:
+    """A path, a speed profile along it and the verdict.
+
+    ``t0_s``: absolute time the profile starts. ``requested_arrival_s``: what was asked (None:
+    untimed); ``arrival_s``: when this plan arrives (the request when feasible, else the earliest).
+    ``feasible`` is False when the request cannot be met; ``reason`` then says why and
+    ``earliest_arrival_s`` gives the earliest feasible arrival (None when no timing helps, e.g. a
+    turn tighter than the steering allows)."""
+
+    path: GeoPath
+    profile: SpeedProfile
+    t0_s: float
+    requested_arrival_s: float | None
+    feasible: bool
+    reason: str
+    earliest_arrival_s: float | None
+    limits: TimedLimits
+    states: tuple[BoundaryState, ...]
+    tags: tuple[str, ...] = field(default=())
+
+    @property
+    def arrival_s(self) -> float:
+        return self.t0_s + self.profile.duration_s
+
+    @property
+    def duration_s(self) -> float:
+        return self.profile.duration_s
+
+    @property
+    def goal(self) -> BoundaryState:
+        return self.states[-1]
+
+    @property
+    def max_steering_rad(self) -> float:
+        return math.atan(self.limits.wheelbase_m * self.path.max_abs_kappa)
+
+    @property
+    def max_speed_m_s(self) -> float:
+        return self.profile.max_speed_m_s
+
+    def at(self, t_s: FloatArray | float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Reference (x, y, yaw, kappa, speed, arc length) at absolute times ``t_s``."""
+        s, v = self.profile.eval(np.asarray(t_s, dtype=float) - self.t0_s)
+        x, y, yaw, k = self.path.sample(s)
+        return x, y, yaw, k, v, s
+
+    def footprint_at(self, t_s: FloatArray) -> FloatArray:
+        """Footprint-disc centres (n, 2) at absolute times, m (the robot waits at its final pose after
+        the end and before the start)."""
+        x, y, yaw, _, _, _ = self.at(t_s)
+        off = self.limits.footprint_offset_m
+        return np.column_stack((x + off * np.cos(yaw), y + off * np.sin(yaw)))
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready description (the ``agnav plan --json`` keys)."""
+        return {
+            "feasible": self.feasible,
+            "reason": self.reason,
+            "earliest_arrival_s": None if self.earliest_arrival_s is None else round(self.earliest_arrival_s - self.t0_s, 3),
+            "requested_arrival_s": None if self.requested_arrival_s is None else round(self.requested_arrival_s - self.t0_s, 3),
+            "duration_s": round(self.duration_s, 3),
+            "path_length_m": round(self.path.length_m, 3),
+            "max_steering_deg": round(math.degrees(self.max_steering_rad), 2),
+            "steering_limit_deg": round(math.degrees(self.limits.plan_steer_rad), 2),
+            "max_speed_mps": round(self.max_speed_m_s, 3),
+            "cruise_speed_mps": round(self.profile.cruise_speed_m_s, 3),
+            "speed_band_mps": [round(self.limits.v_min_m_s, 3), round(self.limits.v_max_m_s, 3)],
+            "accel_limit_mps2": self.limits.accel_m_s2,
+            "dwell_s": round(self.profile.dwell_s, 3),
+            "polynomial_forms": list(self.path.forms),
+            "via_points": [[round(s.x_m, 3), round(s.y_m, 3)] for s in self.states[1:-1]],
+        }
+
+
+def via_state(prev_xy: tuple[float, float], via_xy: tuple[float, float], next_xy: tuple[float, float]) -> BoundaryState:
+    """A pass-through state at ``via_xy``: heading along the mean of the incoming and outgoing chords,
+    steering 0 (ref 003 table 5.1 passes its waypoints with phi = 0)."""
+    a1 = math.atan2(via_xy[1] - prev_xy[1], via_xy[0] - prev_xy[0])
+    a2 = math.atan2(next_xy[1] - via_xy[1], next_xy[0] - via_xy[0])
+    return BoundaryState(via_xy[0], via_xy[1], norm_angle_rad(a1 + 0.5 * norm_angle_rad(a2 - a1)), 0.0)
+
+
+def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arrival_s: float | None,
+               limits: TimedLimits | None = None, vias: tuple[BoundaryState, ...] = (), *,
+               dwell_first_s: float = 0.0, deadline: float | None = None, tags: tuple[str, ...] = (),
+               auto_via: bool = True) -> TimedPlan:
+    """Plan from ``start`` (its speed and steering are the current ones) through ``vias`` to ``goal``
+    (reached at rest), arriving at the absolute time ``arrival_s`` (None: untimed, at the cruise speed).
+
+    ``auto_via``: when the direct polynomial needs more steering than allowed and no via points were
+    given, try a few via points (ahead of the start, behind the goal, beside the chord) and keep the
+    shortest path that fits the steering limit.
+    ``dwell_first_s``: brake now and wait this long before going on (the "yield" retiming).
+    Never raises for an impossible request: the plan comes back with ``feasible`` False, the reason and
+    the earliest arrival, timed for that earliest arrival so it can still be driven. ``deadline``
+    (a time.perf_counter() value) raises :class:`DeadlineMissed` when passed.
+    """
+    lim = limits or TimedLimits()
+    check_deadline(deadline, "plan_timed")
+    steer0 = max(-lim.plan_steer_rad, min(lim.plan_steer_rad, start.steer_rad))
+    s0 = BoundaryState(start.x_m, start.y_m, start.yaw_rad, steer0, max(0.0, start.speed_m_s))
+    states = (s0, *vias, goal)
+    try:
+        path = build_path(list(states), lim.wheelbase_m)
+        if auto_via and not vias and math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
+            found = _auto_via(s0, goal, lim, deadline)
+            if found is not None:
+                path, states = found
+    except ValueError as e:
+        empty = SpeedProfile(np.array([0.0]), np.zeros(0), np.zeros(0), np.zeros(0), ())
+        dummy = GeoPath(np.array([[s0.x_m, s0.y_m]]), np.array([s0.yaw_rad]), np.zeros(1), np.zeros(1), (), (0.0,))
+        return TimedPlan(dummy, empty, t_start_s, arrival_s, False, f"no path: {e}", None, lim, states, tags)
+    sp = lim.speed
+    S = path.length_m
+    v0 = s0.speed_m_s
+    reasons: list[str] = []
+    feasible = True
+    steer_need = math.atan(lim.wheelbase_m * path.max_abs_kappa)
+    if steer_need > lim.plan_steer_rad + 1e-6:
+        feasible = False
+        reasons.append(f"the path needs {math.degrees(steer_need):.1f} deg of steering, the limit is "
+                       f"{math.degrees(lim.plan_steer_rad):.1f} deg (turn too tight for the distance; move the goal "
+                       f"or give a via point)")
+    # brake first when dwelling was asked for
+    pre: list[SpeedProfile] = []
+    s_pre = 0.0
+    t_pre = 0.0
+    if dwell_first_s > 0:
+        a = sp.accel_m_s2
+        d_brake = v0 * v0 / (2 * a)
+        if d_brake >= S:
+            d_brake = 0.0
+        brake = solve_leg(d_brake, v0 / a, v0, 0.0, sp) if v0 > 1e-6 and d_brake > 0 else None
+        if brake is not None:
+            pre.append(brake)
+            s_pre, t_pre = d_brake, brake.duration_s
+        pre.append(solve_leg(0.0, dwell_first_s, 0.0, 0.0, sp))
+        t_pre += dwell_first_s
+        v0 = 0.0
+    d_rest = S - s_pre
+    t_min = t_pre + leg_min_time_s(d_rest, v0, 0.0, sp)
+    if arrival_s is None:
+        from ._profile import leg_time_s
+
+        tau = t_pre + max(leg_time_s(d_rest, v0, 0.0, min(lim.cruise_m_s, sp.v_max_m_s), sp.accel_m_s2), t_min - t_pre)
+        if not math.isfinite(tau):
+            tau = t_min
+    else:
+        tau = arrival_s - t_start_s
+    earliest = t_start_s + t_min if math.isfinite(t_min) else None
+    try:
+        leg = solve_leg(d_rest, tau - t_pre, v0, 0.0, sp)
+    except LegInfeasible as e:
+        feasible = False
+        if math.isfinite(e.min_time_s):
+            reasons.append(f"arrival in {tau:.2f} s is too early: {e.reason}; earliest arrival in {t_min:.2f} s")
+            leg = solve_leg(d_rest, e.min_time_s, v0, 0.0, sp)
+        else:
+            reasons.append(e.reason)
+            leg = solve_leg(d_rest, max(leg_min_time_s(d_rest, 0.0, 0.0, sp), 1e-3), 0.0, 0.0, sp)
+            earliest = None
+    profile = concat_profiles(pre + [leg]) if pre else leg
+    if feasible:
+        reason = "ok"
+    else:
+        reason = "; ".join(reasons)
+    if steer_need > lim.plan_steer_rad + 1e-6:
+        earliest = None  # no timing fixes the geometry
+    return TimedPlan(path, profile, t_start_s, arrival_s, feasible, reason, earliest, lim, states, tags)
+
+
+def _auto_via(s0: BoundaryState, goal: BoundaryState, lim: TimedLimits,
+              deadline: float | None) -> tuple[GeoPath, tuple[BoundaryState, ...]] | None:
+    """Shortest steering-feasible path through one generated via point, or None.
+
+    The candidates are a 9 x 9 grid over the box around start and goal, grown by four minimum turning
+    radii (coarse paths for the search, the winner rebuilt at full resolution)."""
+    r_min = 1.0 / lim.plan_kappa_max
+    pad = 4.0 * r_min
+    xs = np.linspace(min(s0.x_m, goal.x_m) - pad, max(s0.x_m, goal.x_m) + pad, 9)
+    ys = np.linspace(min(s0.y_m, goal.y_m) - pad, max(s0.y_m, goal.y_m) + pad, 9)
+    best: tuple[float, tuple[BoundaryState, ...]] | None = None
+    for vx in xs:
+        check_deadline(deadline, "auto via")
+        for vy in ys:
+            xy = [(s0.x_m, s0.y_m), (float(vx), float(vy)), (goal.x_m, goal.y_m)]
+            if min(math.hypot(vx - s0.x_m, vy - s0.y_m), math.hypot(vx - goal.x_m, vy - goal.y_m)) < r_min:
+                continue
+            st = (s0, via_state(xy[0], xy[1], xy[2]), goal)
+            try:
+                p = build_path(list(st), lim.wheelbase_m, spacing_m=1e9)
+            except ValueError:
+                continue
+            if math.atan(lim.wheelbase_m * p.max_abs_kappa) <= 0.95 * lim.plan_steer_rad and (best is None or p.length_m < best[0]):
+                best = (p.length_m, st)
+    if best is None:
+        return None
+    path = build_path(list(best[1]), lim.wheelbase_m)
+    if math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
+        return None
+    return path, best[1]

@@ -1,0 +1,118 @@
+"""Tracking law of ref 003 (section 5.2) with a speed law that keeps the schedule.
+
+Steering (003 eqs. 5.1-5.3, reconstructed: the symbols survived, the layout did not): the robot at
+its rear-axle centre CP reaches the next reference point RP along an arc of radius
+
+    Rb = d / (2 sin(dtheta / 2)),        phi = atan(l / Rb),  clipped to +-phi_max,
+
+where d is the chord to the reference point and dtheta the heading change along that arc. For an arc
+tangent to the current heading, dtheta is twice the bearing alpha of RP (the chord-tangent angle),
+so the law is pure pursuit with curvature 2 sin(alpha) / d. (003's Matlab listing passes alpha itself
+as dtheta, which halves the gain; ``arc_gain`` = 1 reproduces that, 2 is the exact arc.) RP is the
+reference path point ``lookahead`` ahead of the robot's own progress, so the steering follows the
+geometry even when the robot is early or late.
+
+Speed: the profile's speed at time t plus a correction on the along-path error, and the band rule of
+the car: below v_min the command is v_min while the robot is behind or on schedule and 0 when it is
+ahead (it then waits). Near the goal the command drops to 0 once the remaining path is within the
+stopping distance under the speed controller's lag (v * tau), so the car rolls to rest on the goal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ...types import Pose2D
+from ._plan import TimedPlan
+
+__all__ = ["arc_radius_m", "steer_from_arc", "TrackingParams", "TrackState", "track"]
+
+
+def arc_radius_m(d_m: float, dtheta_rad: float) -> float:
+    """Rb = d / (2 sin(dtheta / 2)), m (signed like dtheta; inf for a straight chord)."""
+    s = math.sin(0.5 * dtheta_rad)
+    if abs(s) < 1e-12:
+        return math.inf
+    return d_m / (2.0 * s)
+
+
+def steer_from_arc(d_m: float, dtheta_rad: float, wheelbase_m: float, max_steer_rad: float) -> float:
+    """phi = atan(l / Rb), clipped to +-max_steer_rad; rad, + = left."""
+    rb = arc_radius_m(d_m, dtheta_rad)
+    if math.isinf(rb):
+        return 0.0
+    phi = math.atan(wheelbase_m / rb)
+    return max(-max_steer_rad, min(max_steer_rad, phi))
+
+
+@dataclass(frozen=True)
+class TrackingParams:
+    """``lookahead_s`` / ``lookahead_min_m``: RP distance (speed times lookahead_s, at least the
+    minimum), m; ``arc_gain`` see the module docstring; ``k_s`` along-path error gain, 1/s;
+    ``ahead_wait_m``: ahead of schedule by more than this, a sub-band speed becomes a wait, m;
+    ``stop_lag_s``: the speed controller's time constant used for the stopping distance, s."""
+
+    lookahead_s: float = 0.7
+    lookahead_min_m: float = 0.35
+    arc_gain: float = 2.0
+    k_s: float = 0.8
+    ahead_wait_m: float = 0.10
+    stop_lag_s: float = 0.25
+    control_dt_s: float = 0.05
+
+
+@dataclass
+class TrackState:
+    """What the tracker reports each step (and keeps between steps: ``s_m``)."""
+
+    s_m: float = 0.0  # robot progress along the path, m
+    s_ref_m: float = 0.0  # where the schedule wants it, m
+    lateral_m: float = 0.0
+    v_ref_m_s: float = 0.0
+    remaining_m: float = 0.0
+    stopping: bool = False
+
+
+def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: TrackState,
+          p: TrackingParams) -> tuple[float, float]:
+    """(speed m/s, steering rad) for the robot at ``pose`` at time ``t_s`` following ``plan``.
+    Updates ``st`` in place."""
+    lim = plan.limits
+    path = plan.path
+    s_rob, lat = path.project(pose.x_m, pose.y_m, st.s_m, window_m=max(1.0, 3.0 * abs(speed_m_s) + 0.5))
+    st.s_m, st.lateral_m = s_rob, lat
+    s_ref, v_ref = plan.profile.eval(t_s - plan.t0_s)
+    s_ref, v_ref = float(s_ref), float(v_ref)
+    st.s_ref_m, st.v_ref_m_s = s_ref, v_ref
+    L = max(p.lookahead_min_m, p.lookahead_s * max(abs(speed_m_s), v_ref))
+    gx, gy = plan.goal.x_m, plan.goal.y_m
+    remaining = max(path.length_m - s_rob, 0.0)
+    # the path's end: use the true distance along the goal heading once close
+    c, s = math.cos(plan.goal.yaw_rad), math.sin(plan.goal.yaw_rad)
+    along_goal = (gx - pose.x_m) * c + (gy - pose.y_m) * s
+    if remaining < 0.5:
+        remaining = along_goal
+    st.remaining_m = remaining
+    # ---- steering: 003 arc to the reference point --------------------------------------------
+    rx, ry, _, _ = path.sample(s_rob + L)
+    dx, dy = float(rx) - pose.x_m, float(ry) - pose.y_m
+    d = math.hypot(dx, dy)
+    alpha = math.atan2(dy, dx) - pose.yaw_rad
+    alpha = (alpha + math.pi) % (2.0 * math.pi) - math.pi
+    steer = steer_from_arc(d, p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
+    # ---- speed: schedule + along-path correction, band rule, stop on the goal -----------------
+    err = s_ref - s_rob  # > 0: behind schedule
+    v = v_ref + p.k_s * err
+    v = min(v, lim.v_max_m_s)
+    stop_d = abs(speed_m_s) * (p.stop_lag_s + 0.5 * p.control_dt_s)
+    if remaining <= stop_d or remaining <= 0.0:
+        st.stopping = True
+        return 0.0, steer
+    st.stopping = False
+    if v < lim.v_min_m_s:
+        if err < -p.ahead_wait_m or v_ref <= 0.0 and err < 0.02:
+            v = 0.0  # early (or in a planned dwell): wait
+        else:
+            v = lim.v_min_m_s
+    return v, steer

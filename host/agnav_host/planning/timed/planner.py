@@ -1,0 +1,306 @@
+"""``timed``: the time-critical planner of ref 003 as a host planner (Observation -> DriveCommand).
+
+Each control step:
+
+1. **plan** when the timed target changes: from the current state to the first goal with an
+   ``arrival_s`` (earlier untimed goals become via points, 003's multiple waypoints), arriving at that
+   absolute time. An impossible time is reported (``status``) and the plan is timed for the earliest
+   feasible arrival instead.
+2. **static obstacles** (laser and/or sonar returns, unknown in advance): if returns block the
+   footprint within ``detect_range_m`` along the plan, the 003 deviation point is computed from the
+   detection (range, bearing, size) and a new plan through it keeps the arrival time (catch-up).
+3. **moving obstacles** (tracks in ``obs.extras["tracks"]``, and other robots' plans in
+   ``obs.extras["peer_plans"]``): the plan is checked in space-time against each track predicted with
+   its velocity and growing uncertainty; a conflict is resolved by waiting, then by deviating, keeping
+   the arrival time where possible (:mod:`._resolve`).
+4. **delays** (dead band, slip, a safety stop by the firmware): when the robot is more than
+   ``delay_replan_m`` behind its schedule, replan from where it is to the same goal and time; when that
+   is no longer feasible the new earliest arrival goes into ``status``.
+5. **track** the plan with the 003 arc law (:mod:`._tracking`).
+
+Every replan is bounded by ``replan_budget_s`` (:class:`~agnav_host.planning.base.DeadlineMissed`
+inside; the planner then keeps its current plan and doubles the budget of its next try, up to 16x)
+and its wall time is kept in ``replan_times_s``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_rad
+from ..base import DeadlineMissed, RobotSpec
+from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
+                         first_blocked_s, first_conflict, moving_obstacles_from)
+from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
+from ._poly import BoundaryState
+from ._resolve import resolve
+from ._tracking import TrackingParams, TrackState, track
+
+__all__ = ["TimedParams", "TimedPlanner"]
+
+
+@dataclass(frozen=True)
+class TimedParams:
+    """Parameters of the ``timed`` planner (SI, angles in deg where named so)."""
+
+    max_steer_deg: float = 20.0  # never command more
+    plan_steer_deg: float = 17.0  # plans use at most this
+    accel_m_s2: float = 1.0
+    safety_margin_m: float = 0.15  # Rsm of 003 eq. 4.29
+    robot_width_m: float = 0.22  # w of 003 eq. 4.29 (RC car body)
+    detect_range_m: float = 2.5  # returns blocking the plan within this (along the path) trigger a deviation
+    static_clear_m: float = 0.08  # clearance kept between the footprint and static returns
+    moving_margin_m: float = 0.12  # clearance kept to predicted moving obstacles / other robots
+    horizon_s: float = 8.0  # space-time look-ahead
+    delay_replan_m: float = 0.25  # schedule error that triggers a catch-up replan
+    min_replan_interval_s: float = 0.4
+    replan_budget_s: float = 0.002
+    use_sonar: bool = True
+    lookahead_s: float = 0.7
+    lookahead_min_m: float = 0.35
+    arc_gain: float = 2.0
+    k_s: float = 0.8
+    stop_lag_s: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not 0 < self.plan_steer_deg <= self.max_steer_deg < 90:
+            raise ValueError("TimedParams: need 0 < plan_steer_deg <= max_steer_deg < 90")
+        for k in ("accel_m_s2", "detect_range_m", "horizon_s", "replan_budget_s", "lookahead_min_m"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"TimedParams.{k} must be > 0, got {getattr(self, k)}")
+
+
+class TimedPlanner:
+    """Time-critical planner (registry name ``timed``); see the module docstring."""
+
+    name = "timed"
+    params_cls = TimedParams
+    uses_sonar = True
+
+    def __init__(self, spec: RobotSpec | None = None, params: TimedParams | None = None) -> None:
+        self.spec = spec or RobotSpec(kinematics="ackermann", radius_m=0.16, max_speed_m_s=1.0, min_speed_m_s=0.435,
+                                      max_accel_m_s2=2.0, wheelbase_m=0.174, footprint_offset_m=0.087, control_dt_s=0.05)
+        self.params = params or TimedParams()
+        p = self.params
+        self.limits = TimedLimits.from_spec(self.spec, max_steer_rad=min(math.radians(p.max_steer_deg), self.spec.max_steer_rad),
+                                            plan_steer_rad=min(math.radians(p.plan_steer_deg), self.spec.max_steer_rad),
+                                            accel_m_s2=min(p.accel_m_s2, self.spec.max_accel_m_s2))
+        self.track_params = TrackingParams(p.lookahead_s, p.lookahead_min_m, p.arc_gain, p.k_s, 0.10, p.stop_lag_s,
+                                           self.spec.control_dt_s)
+        self.reset()
+
+    # ---- lifecycle ----------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.plan: TimedPlan | None = None
+        self.ts = TrackState()
+        self._key: tuple[float, ...] | None = None
+        self._last_steer = 0.0
+        self._last_replan_t = -math.inf
+        self._budget_scale = 1.0
+        self.replan_times_s: list[float] = []
+        self.events: list[tuple[float, str]] = []
+        self.status: dict[str, Any] = {"feasible": None, "reason": "no plan yet", "earliest_arrival_s": None,
+                                       "arrival_s": None, "replans": 0, "last_action": None, "deadline_misses": 0}
+
+    def set_plan(self, plan: TimedPlan, goal: Goal) -> None:
+        """Adopt a plan made elsewhere (e.g. by :func:`coordinate` for several robots) for ``goal``."""
+        self.plan = plan
+        self.ts = TrackState()
+        self._key = self._goal_key(goal)
+        self._set_status(plan, "coordinated plan")
+
+    # ---- helpers ----------------------------------------------------------------------------------
+    @staticmethod
+    def _goal_key(g: Goal) -> tuple[float, ...]:
+        return (g.x_m, g.y_m, math.nan if g.yaw_rad is None else g.yaw_rad, math.nan if g.arrival_s is None else g.arrival_s)
+
+    def _mission(self, obs: Observation) -> tuple[Goal, list[Goal]]:
+        """(timed target, untimed goals before it)."""
+        goals = obs.extras.get("goals")
+        gi = obs.extras.get("goal_index", 0)
+        if isinstance(goals, list) and goals and isinstance(gi, int):
+            rest = goals[gi:]
+            for k, g in enumerate(rest):
+                if g.arrival_s is not None:
+                    return g, rest[:k]
+            return rest[-1], rest[:-1]
+        return obs.goal, []
+
+    def _state_now(self, obs: Observation) -> BoundaryState:
+        v = max(0.0, obs.speed_m_s)
+        return BoundaryState(obs.pose.x_m, obs.pose.y_m, obs.pose.yaw_rad, self._last_steer, v)
+
+    def _set_status(self, plan: TimedPlan, action: str) -> None:
+        self.status.update(feasible=plan.feasible, reason=plan.reason, earliest_arrival_s=plan.earliest_arrival_s,
+                           arrival_s=plan.arrival_s, last_action=action)
+
+    def _remaining_vias(self) -> tuple[BoundaryState, ...]:
+        if self.plan is None:
+            return ()
+        knots = self.plan.path.knots_s
+        vias = self.plan.states[1:-1]
+        return tuple(v for k, v in enumerate(vias) if self.ts.s_m < knots[k + 1] - 0.3)
+
+    def _initial_plan(self, obs: Observation, target: Goal, before: list[Goal]) -> None:
+        pts = [(obs.pose.x_m, obs.pose.y_m)] + [(g.x_m, g.y_m) for g in before] + [(target.x_m, target.y_m)]
+        vias = tuple(via_state(pts[i - 1], pts[i], pts[i + 1]) for i in range(1, len(pts) - 1))
+        prev = pts[-2]
+        yaw = target.yaw_rad if target.yaw_rad is not None else math.atan2(target.y_m - prev[1], target.x_m - prev[0])
+        goal = BoundaryState(target.x_m, target.y_m, yaw, 0.0, 0.0)
+        plan = plan_timed(self._state_now(obs), goal, obs.t_s, target.arrival_s, self.limits, vias)
+        self.plan = plan
+        self.ts = TrackState()
+        self._key = self._goal_key(target)
+        self._set_status(plan, "plan")
+        self.events.append((obs.t_s, f"plan: {plan.reason}"))
+
+    def _static_points(self, obs: Observation, movers: list[SpaceTimeObstacle]) -> FloatArray:
+        chunks = []
+        rng_max = self.params.detect_range_m + 1.0
+        if obs.scan is not None:
+            sp = obs.scan.pose if obs.scan.pose is not None else obs.pose
+            r = obs.scan.ranges_m
+            a = obs.scan.angles_rad + sp.yaw_rad
+            ok = np.isfinite(r) & (r > 0.0) & (r < rng_max)
+            chunks.append(np.column_stack((sp.x_m + r[ok] * np.cos(a[ok]), sp.y_m + r[ok] * np.sin(a[ok]))))
+        if self.params.use_sonar and obs.sonar is not None:
+            r = np.asarray(obs.sonar.ranges_m, dtype=float)
+            b = obs.pose.yaw_rad + self.spec.sonar_spacing_rad * np.arange(len(r))
+            ok = np.isfinite(r) & (r < rng_max)
+            d = r[ok] + self.spec.sonar_mount_radius_m
+            cx = obs.pose.x_m + self.spec.footprint_offset_m * math.cos(obs.pose.yaw_rad)
+            cy = obs.pose.y_m + self.spec.footprint_offset_m * math.sin(obs.pose.yaw_rad)
+            chunks.append(np.column_stack((cx + d * np.cos(b[ok]), cy + d * np.sin(b[ok]))))
+        pts = np.concatenate(chunks) if chunks else np.zeros((0, 2))
+        if len(pts) and movers:
+            keep = np.ones(len(pts), dtype=bool)
+            for m in movers:
+                xy, r = m.predict(np.array([obs.t_s]))
+                keep &= np.hypot(pts[:, 0] - xy[0, 0], pts[:, 1] - xy[0, 1]) > r[0] + 0.25
+            pts = pts[keep]
+        return pts
+
+    def _sensor_pose(self, obs: Observation) -> Pose2D:
+        if obs.scan is not None and obs.scan.pose is not None:
+            return obs.scan.pose
+        off = self.spec.footprint_offset_m
+        return Pose2D(obs.pose.x_m + off * math.cos(obs.pose.yaw_rad), obs.pose.y_m + off * math.sin(obs.pose.yaw_rad), obs.pose.yaw_rad)
+
+    def _deviation_points(self, obs: Observation, pts: FloatArray, mask: np.ndarray) -> list[tuple[str, tuple[float, float]]]:
+        """003 deviation points (eqs. 4.29-4.32) for the nearest obstacle that blocks the plan, preferred
+        side first. The obstacle is the whole cluster of returns around the blocking ones (its size and
+        mid bearing come from all of it, as in 003's listing: mid of the detected angles)."""
+        assert self.plan is not None
+        sen = self._sensor_pose(obs)
+        rel = pts - np.array([sen.x_m, sen.y_m])
+        b_rel = norm_angle_arr(np.arctan2(rel[:, 1], rel[:, 0]) - sen.yaw_rad)
+        order = np.argsort(b_rel)
+        clusters = cluster_ordered(pts[order], 0.3)
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        blocking = [order[c] for c in clusters if mask[order[c]].any()]
+        c = min(blocking, key=lambda idx: float(dist[idx].min()))
+        d_dect = float(dist[c].min())
+        theta_dect = sen.yaw_rad + 0.5 * float(b_rel[c].min() + b_rel[c].max())
+        ends = pts[c[[int(np.argmin(b_rel[c])), int(np.argmax(b_rel[c]))]]]
+        r_obs = max(0.05, 0.5 * float(np.hypot(*(ends[1] - ends[0]))))
+        p = self.params
+        lim = self.limits
+        # the lateral offset Rsm + w must clear the obstacle's radius plus the footprint: grow Rsm if not
+        r_sm = max(p.safety_margin_m, r_obs + lim.radius_m + p.static_clear_m + 0.05 - p.robot_width_m)
+        # side: away from the obstacle's centre relative to the planned path near the detection
+        cx, cy = float(pts[c, 0].mean()), float(pts[c, 1].mean())
+        _, lat = self.plan.path.project(cx, cy, self.ts.s_m + d_dect, window_m=2.0)
+        first = -1 if lat > 0 else 1
+        out = []
+        for extra in (0.0, 0.3, 0.6):
+            for side in (first, -first):
+                _, _, xd, yd = deviation_point(sen.x_m, sen.y_m, d_dect, theta_dect, r_obs, r_sm + extra, p.robot_width_m, side)
+                out.append((f"deviate {'left' if side > 0 else 'right'} (003 point{'' if extra == 0 else f' +{extra:.1f} m'})", (xd, yd)))
+        return out
+
+    # ---- step ---------------------------------------------------------------------------------
+    def step(self, obs: Observation) -> DriveCommand:
+        t = obs.t_s
+        target, before = self._mission(obs)
+        if self.plan is None or self._goal_key(target) != self._key:
+            self._initial_plan(obs, target, before)
+        assert self.plan is not None
+        p = self.params
+        tracks = moving_obstacles_from(obs.extras.get("tracks") or obs.extras.get("moving_obstacles"), t)  # type: ignore[arg-type]
+        movers: list[SpaceTimeObstacle] = list(tracks)
+        peers = obs.extras.get("peer_plans") or []
+        movers += [PlanObstacle(pp, pp.limits.radius_m) for pp in peers]  # type: ignore[union-attr]
+        pts = self._static_points(obs, movers)
+        # progress is needed by the checks: a cheap projection first
+        self.ts.s_m, _ = self.plan.path.project(obs.pose.x_m, obs.pose.y_m, self.ts.s_m,
+                                                window_m=max(1.0, 3.0 * abs(obs.speed_m_s) + 0.5))
+        if not self.ts.stopping and t - self._last_replan_t >= p.min_replan_interval_s and self.plan.path.length_m - self.ts.s_m > 0.6:
+            self._maybe_replan(obs, target, pts, movers)
+        v, steer = track(self.plan, obs.pose, obs.speed_m_s, t, self.ts, self.track_params)
+        # last line of defence: a return inside the footprint's way within the braking distance
+        if len(pts) and v > 0:
+            blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
+            if blk is not None:
+                v = 0.0
+        self._last_steer = steer
+        return DriveCommand(v, 0.0, steer)
+
+    def _maybe_replan(self, obs: Observation, target: Goal, pts: FloatArray, movers: list[SpaceTimeObstacle]) -> None:
+        assert self.plan is not None
+        p = self.params
+        t = obs.t_s
+        why = None
+        extra: list[tuple[str, tuple[float, float]]] = []
+        blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + p.detect_range_m, p.static_clear_m) if len(pts) else None
+        if blk is not None:
+            why = "static"
+            extra = self._deviation_points(obs, pts, blk[1])
+        elif movers and first_conflict(self.plan, movers, t, t + p.horizon_s, p.moving_margin_m) is not None:
+            why = "moving"
+        else:
+            s_ref, _ = self.plan.profile.eval(t - self.plan.t0_s)
+            if float(s_ref) - self.ts.s_m > p.delay_replan_m:
+                why = "delay"
+        if why is None:
+            return
+        t0 = time.perf_counter()
+        budget = p.replan_budget_s * self._budget_scale
+        start = self._state_now(obs)
+        goal = self.plan.goal
+        arrival = target.arrival_s
+        vias = self._remaining_vias()
+        try:
+            if why == "delay":
+                new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
+                action = "catch-up"
+            else:
+                res = resolve(start, goal, t, arrival, self.limits, vias, movers, pts, horizon_s=p.horizon_s,
+                              margin_m=p.moving_margin_m, static_clear_m=p.static_clear_m, static_range_m=p.detect_range_m + 2.0,
+                              deadline=t0 + budget, extra_vias_xy=extra, try_yield=why == "moving",
+                              try_base=why != "static")
+                new, action = res.plan, f"{why}: {res.action}"
+        except DeadlineMissed:
+            new, action = None, f"{why}: budget of {budget * 1e3:.1f} ms exhausted"
+            self.status["deadline_misses"] += 1
+            self._budget_scale = min(self._budget_scale * 2.0, 16.0)  # give the next try more room
+        dt = time.perf_counter() - t0
+        self.replan_times_s.append(dt)
+        self._last_replan_t = t
+        self.events.append((t, action))
+        if new is not None:
+            self._budget_scale = 1.0
+            self.plan = new
+            self.ts = TrackState(s_m=0.0)
+            self.status["replans"] += 1
+            self._set_status(new, action)
+        else:
+            self.status["last_action"] = action
+
+
+def norm_angle_arr(a: FloatArray) -> FloatArray:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi

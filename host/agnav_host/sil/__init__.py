@@ -1,0 +1,21 @@
+"""Native software-in-the-loop: the real firmware (built for the PC against the simulated HAL)
+in lock-step with the world simulator, a radio link model and the host endpoint.
+
+    build_library            (re)build build/sil/libagnav_sil.so when sources are newer
+    Firmware                 ctypes binding (one pristine firmware per instance)
+    LinkParams, LinkChannel  radio model (latency, 57600 baud, loss); Tlog telemetry log
+    HostEndpoint             the host's MAVLink endpoint
+    Plant                    robot + world + sensors <-> firmware pins
+    SilSession, SilConfig    lock-step loop; PlannerHost; run_sil_scenario, write_sil_outputs
+"""
+
+from .binding import Firmware, Outputs
+from .build import LIB_PATH, SilBuildError, build_library
+from .host import HostEndpoint
+from .link import LinkChannel, LinkParams, MavFramer, Tlog
+from .plant import Plant, PlantConfig, hbridge_table
+from .session import PlannerHost, SilConfig, SilRunResult, SilSession, run_sil_scenario, write_sil_outputs
+
+__all__ = ["Firmware", "Outputs", "LIB_PATH", "SilBuildError", "build_library", "HostEndpoint", "LinkChannel",
+           "LinkParams", "MavFramer", "Tlog", "Plant", "PlantConfig", "hbridge_table", "PlannerHost", "SilConfig",
+           "SilRunResult", "SilSession", "run_sil_scenario", "write_sil_outputs"]

@@ -1,0 +1,217 @@
+"""ctypes binding of the native SIL library (hil/sil/sil_api.h).
+
+Each :class:`Firmware` loads its own private copy of ``libagnav_sil.so`` (copied to a temporary
+file, opened, then unlinked), so every instance is a pristine power-on: the firmware's file-scope
+state is fresh, several instances can run side by side in one process, and two runs with the same
+inputs are bit-identical.
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .build import LIB_PATH, build_library
+
+__all__ = ["Firmware", "Outputs", "PARAMS_RESULT"]
+
+PARAMS_RESULT = {0: "ok", -1: "unknown", -2: "out of range", -3: "storage"}
+
+
+class _COutputs(C.Structure):
+    _fields_ = [("servo_us", C.c_uint16 * 2), ("duty", C.c_uint8 * 2), ("reverse", C.c_uint8 * 2),
+                ("wdt_kicks", C.c_uint32), ("wdt_timeout_ms", C.c_uint16), ("reserved", C.c_uint16)]
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Actuator outputs: servo pulses (steer, throttle) in us, H-bridge duty and direction per side."""
+
+    steer_us: int
+    throttle_us: int
+    duty_left: int
+    duty_right: int
+    reverse_left: bool
+    reverse_right: bool
+    wdt_kicks: int
+
+
+_SIGS: dict[str, tuple[object, list[object]]] = {
+    "sil_api_version": (C.c_uint32, []),
+    "sil_init": (None, []),
+    "sil_boot": (None, []),
+    "sil_reset": (None, []),
+    "sil_reboot": (None, []),
+    "sil_time_us": (C.c_uint64, []),
+    "sil_set_tick_us": (None, [C.c_uint32]),
+    "sil_set_stop_on_trigger": (None, [C.c_int]),
+    "sil_step": (C.c_uint32, [C.c_uint32]),
+    "sil_step_to": (C.c_uint64, [C.c_uint64]),
+    "sil_loop_passes": (C.c_uint64, []),
+    "sil_uart_write": (C.c_uint32, [C.c_char_p, C.c_uint32]),
+    "sil_uart_read": (C.c_uint32, [C.c_void_p, C.c_uint32]),
+    "sil_encoder_edge": (None, [C.c_uint8, C.c_uint8]),
+    "sil_queue_encoder_edges": (C.c_uint32, [C.c_uint8, C.c_void_p, C.c_void_p, C.c_uint32]),
+    "sil_queue_echo": (C.c_int, [C.c_uint8, C.c_uint64, C.c_uint8]),
+    "sil_take_triggers": (C.c_uint32, [C.c_void_p, C.c_void_p, C.c_uint32]),
+    "sil_sonar_trigger_count": (C.c_uint32, [C.c_uint8]),
+    "sil_sonar_echo_edge": (None, [C.c_uint8, C.c_uint8]),
+    "sil_pending_events": (C.c_uint32, []),
+    "sil_late_events": (C.c_uint32, []),
+    "sil_outputs": (None, [C.POINTER(_COutputs)]),
+    "sil_param_set": (C.c_int, [C.c_char_p, C.c_int32]),
+    "sil_param_get": (C.c_int, [C.c_char_p, C.POINTER(C.c_int32)]),
+    "sil_param_save": (C.c_int, []),
+    "sil_eeprom_size": (C.c_uint32, []),
+    "sil_eeprom_read": (None, [C.c_uint32, C.c_void_p, C.c_uint32]),
+    "sil_eeprom_write": (None, [C.c_uint32, C.c_char_p, C.c_uint32]),
+}
+
+
+class Firmware:
+    """One simulated robot controller running the real firmware.
+
+    ``params`` (name -> value) are stored to the simulated EEPROM and the firmware is rebooted
+    with them before any time passes, as if they had been saved on the robot before the run.
+    """
+
+    def __init__(self, params: dict[str, int] | None = None, lib_path: Path | None = None, tick_us: int = 100) -> None:
+        src = Path(lib_path) if lib_path is not None else build_library()
+        fd, tmp = tempfile.mkstemp(prefix="agnav_sil_", suffix=".so")
+        os.close(fd)
+        try:
+            shutil.copyfile(src, tmp)
+            self._lib = C.CDLL(tmp, mode=os.RTLD_LOCAL)
+        finally:
+            os.unlink(tmp)  # the mapping stays valid
+        for name, (res, args) in _SIGS.items():
+            f = getattr(self._lib, name)
+            f.restype = res
+            f.argtypes = args
+        self._buf = C.create_string_buffer(65536)
+        self._trig_idx = (C.c_uint8 * 256)()
+        self._trig_t = (C.c_uint64 * 256)()
+        self._out = _COutputs()
+        self._lib.sil_reset()
+        if params:
+            for k, v in params.items():
+                self.param_set(k, v)
+            rc = self._lib.sil_param_save()
+            if rc != 0:
+                raise RuntimeError(f"SIL: storing parameters failed ({PARAMS_RESULT.get(rc, rc)})")
+            self._lib.sil_reboot()
+        self._lib.sil_set_tick_us(tick_us)
+        self._take = self._lib.sil_take_triggers
+        self.step_us = self._lib.sil_step  # fast path: bound C function
+        self.step_to = self._lib.sil_step_to
+
+    # ---- life cycle -----------------------------------------------------------------------------
+    def close(self) -> None:
+        lib, self._lib = getattr(self, "_lib", None), None
+        if lib is not None:
+            import _ctypes
+
+            _ctypes.dlclose(lib._handle)
+
+    def __enter__(self) -> "Firmware":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def reboot(self) -> None:
+        self._lib.sil_reboot()
+
+    # ---- time -------------------------------------------------------------------------------------
+    @property
+    def time_us(self) -> int:
+        return int(self._lib.sil_time_us())
+
+    def set_tick_us(self, us: int) -> None:
+        self._lib.sil_set_tick_us(us)
+
+    def set_stop_on_trigger(self, on: bool) -> None:
+        self._lib.sil_set_stop_on_trigger(1 if on else 0)
+
+    @property
+    def loop_passes(self) -> int:
+        return int(self._lib.sil_loop_passes())
+
+    # ---- link ---------------------------------------------------------------------------------------
+    def uart_write(self, data: bytes) -> int:
+        return int(self._lib.sil_uart_write(data, len(data)))
+
+    def uart_read(self) -> bytes:
+        out = b""
+        while True:
+            n = self._lib.sil_uart_read(self._buf, len(self._buf))
+            out += self._buf.raw[:n]
+            if n < len(self._buf):
+                return out
+
+    # ---- encoders and sonar ------------------------------------------------------------------------
+    def encoder_edge(self, idx: int, ab: int) -> None:
+        self._lib.sil_encoder_edge(idx, ab)
+
+    def queue_encoder_edges(self, idx: int, t_us: np.ndarray, ab: np.ndarray) -> int:
+        t = np.ascontiguousarray(t_us, dtype=np.uint64)
+        a = np.ascontiguousarray(ab, dtype=np.uint8)
+        n = len(t)
+        if n == 0:
+            return 0
+        k = int(self._lib.sil_queue_encoder_edges(idx, t.ctypes.data, a.ctypes.data, n))
+        if k != n:
+            raise RuntimeError(f"SIL event queue full: {k} of {n} encoder edges queued")
+        return k
+
+    def queue_echo(self, idx: int, t_us: int, level: int) -> None:
+        if not self._lib.sil_queue_echo(idx, t_us, level):
+            raise RuntimeError("SIL event queue full (echo)")
+
+    def take_triggers(self) -> list[tuple[int, int]]:
+        n = self._take(self._trig_idx, self._trig_t, 256)
+        if n == 0:
+            return []
+        return list(zip(self._trig_idx[:n], self._trig_t[:n]))
+
+    def trigger_count(self, idx: int) -> int:
+        return int(self._lib.sil_sonar_trigger_count(idx))
+
+    @property
+    def pending_events(self) -> int:
+        return int(self._lib.sil_pending_events())
+
+    @property
+    def late_events(self) -> int:
+        return int(self._lib.sil_late_events())
+
+    # ---- outputs --------------------------------------------------------------------------------------
+    def outputs(self) -> Outputs:
+        o = self._out
+        self._lib.sil_outputs(C.byref(o))
+        return Outputs(o.servo_us[0], o.servo_us[1], o.duty[0], o.duty[1], bool(o.reverse[0]), bool(o.reverse[1]),
+                       o.wdt_kicks)
+
+    # ---- parameters ------------------------------------------------------------------------------------
+    def param_set(self, name: str, value: int) -> None:
+        rc = self._lib.sil_param_set(name.encode(), int(value))
+        if rc != 0:
+            raise ValueError(f"SIL parameter {name}={value}: {PARAMS_RESULT.get(rc, rc)}")
+
+    def param_get(self, name: str) -> int:
+        v = C.c_int32()
+        if self._lib.sil_param_get(name.encode(), C.byref(v)) != 0:
+            raise KeyError(name)
+        return int(v.value)
+
+    def eeprom(self) -> bytes:
+        n = int(self._lib.sil_eeprom_size())
+        buf = C.create_string_buffer(n)
+        self._lib.sil_eeprom_read(0, buf, n)
+        return buf.raw

@@ -1,0 +1,64 @@
+"""``agnav sil``: serve the native SIL firmware to a ground station (TCP, SITL style, or a pty)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..cli import subcommand
+
+
+def _param(text: str) -> tuple[str, int]:
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip().upper(), int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"parameter value must be an integer: {text!r}") from None
+
+
+@subcommand(
+    "sil",
+    help="run the real firmware natively in a simulated world and serve its MAVLink on TCP (SITL style)",
+    args=[
+        (("scenario",), {"nargs": "?", "default": None, "help": "built-in name or .toml path (default: the default scenario)"}),
+        (("--tcp",), {"default": "tcp:127.0.0.1:5760", "metavar": "HOST:PORT",
+                      "help": "loopback endpoint to listen on (default tcp:127.0.0.1:5760); 'none' to disable"}),
+        (("--pty",), {"action": "store_true", "help": "also serve on a pseudo-terminal (its path is printed)"}),
+        (("--speedup",), {"type": float, "default": 1.0, "help": "simulated seconds per wall-clock second (default 1)"}),
+        (("--duration",), {"type": float, "default": None, "help": "stop after this many simulated seconds"}),
+        (("--seed",), {"type": int, "default": 0, "help": "random seed (default 0)"}),
+        (("--param",), {"type": _param, "action": "append", "default": [], "metavar": "NAME=VALUE",
+                        "help": "firmware parameter stored in EEPROM before boot (repeatable), e.g. LINK_TIMEOUT_MS=2000"}),
+        (("--tlog",), {"default": None, "help": "write the radio traffic (both ways) to this .tlog"}),
+    ],
+)
+def _cmd_sil(ns: argparse.Namespace) -> int:
+    from ..sim.scenario import ScenarioError, load_scenario
+    from .build import SilBuildError
+    from .server import ServeOptions, parse_endpoint, serve
+    from .session import SilConfig
+
+    try:
+        sc = load_scenario(ns.scenario)
+    except ScenarioError as e:
+        print(f"agnav sil: {e}", file=sys.stderr)
+        return 2
+    try:
+        tcp = None if ns.tcp == "none" else parse_endpoint(ns.tcp)
+    except ValueError as e:
+        print(f"agnav sil: {e}", file=sys.stderr)
+        return 2
+    if tcp is None and not ns.pty:
+        print("agnav sil: nothing to serve on (--tcp none and no --pty)", file=sys.stderr)
+        return 2
+    cfg = SilConfig(firmware_params=tuple(ns.param))
+    try:
+        s = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
+                                   tlog_path=ns.tlog, config=cfg))
+    except (SilBuildError, ValueError, OSError) as e:
+        print(f"agnav sil: {e}", file=sys.stderr)
+        return 1
+    print(f"agnav sil: stopped at t = {s.t_s:.1f} s, robot at ({s.pose.x_m:.2f}, {s.pose.y_m:.2f})")
+    return 0

@@ -1,0 +1,169 @@
+"""Radio link model between the host and the firmware, and the telemetry log (.tlog).
+
+Each direction is a :class:`LinkChannel`: the byte stream is cut into MAVLink frames (a radio
+packet each), frames are lost with probability ``loss`` (seeded), serialised at ``baud / 10`` bytes
+per second (57600 baud = 5760 B/s, one frame after the other), held in a transmit buffer of
+``buffer_bytes`` (frames that do not fit are dropped, as an XBee does), and delivered
+``latency_s`` after their last byte left. Bytes that are not part of a MAVLink frame pass as
+their own packet. Everything is in integer microseconds of simulated time, so a run is exactly
+reproducible.
+
+:class:`Tlog` writes what the radio carried, both ways, in the MAVProxy ``.tlog`` layout: for every
+frame an 8-byte big-endian timestamp in microseconds (simulated time since boot here, not Unix
+time) followed by the raw frame. ``pymavlink.mavutil.mavlink_connection(path)`` reads it.
+"""
+
+from __future__ import annotations
+
+import heapq
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+__all__ = ["LinkParams", "MavFramer", "LinkChannel", "Tlog", "split_frames"]
+
+
+@dataclass(frozen=True)
+class LinkParams:
+    """One direction of the radio. ``baud`` 0 = unlimited bandwidth."""
+
+    baud: int = 57600
+    latency_s: float = 0.010
+    loss: float = 0.0  # probability a frame is lost
+    buffer_bytes: int = 2048  # radio transmit buffer; frames beyond it are dropped
+
+    def __post_init__(self) -> None:
+        if self.baud < 0 or self.latency_s < 0 or not 0.0 <= self.loss <= 1.0 or self.buffer_bytes < 1:
+            raise ValueError(f"bad link parameters: {self}")
+
+    @property
+    def bytes_per_s(self) -> float:
+        return self.baud / 10.0  # 8N1: 10 bits per byte
+
+
+class MavFramer:
+    """Cuts a byte stream into MAVLink 1/2 frames (partial frames are kept for the next call)."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+
+    def feed(self, data: bytes) -> list[bytes]:
+        self._buf += data
+        out: list[bytes] = []
+        b = self._buf
+        i = 0
+        while i < len(b):
+            m = b[i]
+            if m not in (0xFD, 0xFE):
+                j = i
+                while j < len(b) and b[j] not in (0xFD, 0xFE):
+                    j += 1
+                out.append(bytes(b[i:j]))  # stray bytes pass as they are
+                i = j
+                continue
+            if len(b) - i < 3:
+                break
+            if m == 0xFD:
+                n = 12 + b[i + 1] + (13 if b[i + 2] & 0x01 else 0)
+            else:
+                n = 8 + b[i + 1]
+            if len(b) - i < n:
+                break
+            out.append(bytes(b[i:i + n]))
+            i += n
+        del b[:i]
+        return out
+
+
+def split_frames(data: bytes) -> list[bytes]:
+    return MavFramer().feed(data)
+
+
+class LinkChannel:
+    """One direction of the link: ``send(t_us, bytes)`` then ``receive(t_us)`` what has arrived."""
+
+    def __init__(self, params: LinkParams, rng: np.random.Generator, name: str = "", tlog: "Tlog | None" = None) -> None:
+        self.params = params
+        self.name = name
+        self._rng = rng
+        self._framer = MavFramer()
+        self._busy_until_us = 0
+        self._queue: list[tuple[int, int, bytes]] = []  # (deliver_us, seq, frame)
+        self._seq = 0
+        self._tlog = tlog
+        self.down = False  # True: everything sent is lost (link cut)
+        self.frames_sent = 0
+        self.frames_lost = 0
+        self.frames_dropped = 0  # transmit buffer overflow
+        self.bytes_sent = 0
+        self.last_delivery_us: int | None = None
+
+    def _backlog_bytes(self, t_us: int) -> float:
+        if self.params.baud <= 0:
+            return 0.0
+        return max(0, self._busy_until_us - t_us) * self.params.bytes_per_s * 1e-6
+
+    def send(self, t_us: int, data: bytes) -> None:
+        if not data:
+            return
+        p = self.params
+        for frame in self._framer.feed(data):
+            self.frames_sent += 1
+            if self._backlog_bytes(t_us) + len(frame) > p.buffer_bytes:
+                self.frames_dropped += 1
+                continue
+            start = max(t_us, self._busy_until_us)
+            dur = 0 if p.baud <= 0 else int(round(len(frame) * 1e6 / p.bytes_per_s))
+            self._busy_until_us = start + dur
+            lost = self.down or (p.loss > 0.0 and self._rng.random() < p.loss)
+            if self._tlog is not None:
+                self._tlog.write(start, frame)  # it went on air (lost or not)
+            if lost:
+                self.frames_lost += 1
+                continue
+            self.bytes_sent += len(frame)
+            heapq.heappush(self._queue, (self._busy_until_us + int(round(p.latency_s * 1e6)), self._seq, frame))
+            self._seq += 1
+
+    def next_delivery_us(self) -> int | None:
+        return self._queue[0][0] if self._queue else None
+
+    def receive(self, t_us: int) -> bytes:
+        out = []
+        while self._queue and self._queue[0][0] <= t_us:
+            d, _, frame = heapq.heappop(self._queue)
+            self.last_delivery_us = d
+            out.append(frame)
+        return b"".join(out)
+
+
+class Tlog:
+    """Frames with their time, in the .tlog layout (see the module docstring)."""
+
+    def __init__(self, path: str | Path | None = None) -> None:
+        self._f: BinaryIO | None = open(path, "wb") if path is not None else None
+        self._mem = bytearray() if path is None else None
+        self.frames = 0
+
+    def write(self, t_us: int, frame: bytes) -> None:
+        rec = struct.pack(">Q", t_us) + frame
+        self.frames += 1
+        if self._f is not None:
+            self._f.write(rec)
+        else:
+            assert self._mem is not None
+            self._mem += rec
+
+    def getvalue(self) -> bytes:
+        return bytes(self._mem) if self._mem is not None else b""
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_bytes(self.getvalue())
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+            self._f = None

@@ -1,0 +1,367 @@
+"""Lock-step SIL: world simulator, real firmware and host endpoint in one simulated time.
+
+One :meth:`SilSession.step` (``world_dt_s``, default 10 ms):
+
+1. the firmware's actuator outputs at t0 drive the robot model from t0 to t1 (zero-order hold;
+   the firmware's control loop runs at 50 Hz, so outputs change at most every 20 ms);
+2. the wheel rotation over the step becomes encoder edges queued at their exact microseconds;
+3. the firmware runs to t1 in ticks of ``tick_us`` (100 us: a >= 10 kHz main loop); it stops at
+   each sonar trigger so the world answers with echo edges timed from the trigger, and at each
+   radio delivery so the host's bytes reach the UART at the microsecond they arrive;
+4. what the firmware sent goes on the downlink, what the downlink delivered goes to the host
+   endpoint, the host logic runs (planner, heartbeats), and its bytes go on the uplink.
+
+Everything random comes from one seed, time is integer microseconds, so the same seed gives
+byte-identical telemetry logs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..sim.metrics import RunMetrics
+from ..sim.runner import TRAJECTORY_COLUMNS, RunResult, _standin_params, write_outputs
+from ..sim.controller import GoalSeekParams, make_standin
+from ..sim.robots import DiffDrive
+from ..sim.scenario import Scenario
+from ..types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
+from .binding import Firmware
+from .host import HostEndpoint
+from .link import LinkChannel, LinkParams, Tlog
+from .plant import Plant, PlantConfig
+
+__all__ = ["SilConfig", "SilSession", "HostLogic", "PlannerHost", "SilRunResult", "run_sil_scenario",
+           "write_sil_outputs", "FIRMWARE_CSV_COLUMNS"]
+
+FIRMWARE_CSV_COLUMNS = ("t_s", "time_boot_ms", "layer", "reason", "failsafe_flags", "steer_cdeg", "speed_mm_s")
+
+
+@dataclass(frozen=True)
+class SilConfig:
+    world_dt_s: float = 0.01
+    tick_us: int = 100
+    uplink: LinkParams = field(default_factory=LinkParams)
+    downlink: LinkParams = field(default_factory=LinkParams)
+    plant: PlantConfig = field(default_factory=PlantConfig)
+    firmware_params: tuple[tuple[str, int], ...] = ()  # extra EEPROM parameters (after the robot profile)
+    record_outputs: bool = False  # keep (t_us, Outputs) after every step
+
+
+class HostLogic(Protocol):
+    def __call__(self, s: "SilSession", t_us: int) -> None: ...
+
+
+class SilSession:
+    """World + firmware + link + host endpoint, advanced together (see the module docstring)."""
+
+    def __init__(self, sc: Scenario, seed: int = 0, config: SilConfig | None = None,
+                 host_logic: HostLogic | None = None) -> None:
+        self.sc = sc
+        self.seed = seed
+        self.cfg = cfg = config or SilConfig()
+        ss = np.random.SeedSequence(seed)
+        rng_robot, self.rng_laser, rng_sonar, rng_up, rng_down = (np.random.default_rng(s) for s in ss.spawn(5))
+        self.plant = Plant(sc, rng_robot, rng_sonar, cfg.plant)
+        params = dict(self.plant.firmware_params())
+        params.update(dict(cfg.firmware_params))
+        self.fw = Firmware(params, tick_us=cfg.tick_us)
+        self.tlog = Tlog()
+        self.up = LinkChannel(cfg.uplink, rng_up, "up", self.tlog)
+        self.down = LinkChannel(cfg.downlink, rng_down, "down", self.tlog)
+        self.host = HostEndpoint()
+        self.host_logic = host_logic
+        self.dt_us = int(round(cfg.world_dt_s * 1e6))
+        if self.dt_us < 1:
+            raise ValueError("world_dt_s must be >= 1 us")
+        self.t_us = self.fw.time_us
+        self.outputs_log: list[tuple[int, object]] = []
+        self.triggers = 0
+        self.on_downlink: Callable[[int, bytes], None] | None = None  # raw bytes the radio delivered to the host
+
+    @property
+    def t_s(self) -> float:
+        return self.t_us * 1e-6
+
+    def close(self) -> None:
+        self.fw.close()
+
+    # ---- start-up --------------------------------------------------------------------------------------
+    def provision(self, timeout_s: float = 3.0, retry_s: float = 0.3) -> None:
+        """Send the robot's calibration tables over the link (as a set-up tool would), save them to
+        EEPROM, and wait for the firmware to accept them, resending what was not acknowledged every
+        ``retry_s`` (the link may lose frames). Raises RuntimeError when refused or unanswered."""
+        uploads = self.plant.calibration_uploads()
+        if not uploads:
+            return
+        want = {tid for tid, *_ in uploads}
+        end = self.t_us + int(timeout_s * 1e6)
+        acked: dict[int, int] = {}
+        saved = False
+        while self.t_us < end and not saved:
+            for tid, pwm, val, neutral in uploads:
+                if acked.get(tid) != 0:
+                    self.host.calib_table(tid, pwm, val, neutral)
+            if want <= {t for t, r in acked.items() if r == 0}:
+                self.host.calib_request(0, 1)  # save to EEPROM (clears the CALIB_DEFAULTED health flag)
+            self.up.send(self.t_us, self.host.take_tx())
+            resend = self.t_us + int(retry_s * 1e6)
+            while self.t_us < min(resend, end):
+                self._advance()
+                for a in self.host.calib_acks:
+                    if a.table_id in want and a.table_id not in acked or acked.get(a.table_id) != 0:
+                        acked[a.table_id] = a.result
+                    if a.table_id == 0 and a.result == 0 and want <= {t for t, r in acked.items() if r == 0}:
+                        saved = True
+                self.host.calib_acks.clear()
+                if saved:
+                    break
+            bad = {t: r for t, r in acked.items() if r != 0}
+            if bad:
+                raise RuntimeError(f"SIL provisioning: calibration refused {bad}")
+        if not saved:
+            raise RuntimeError(f"SIL provisioning: no answer from the firmware in {timeout_s} s (acks {acked})")
+
+    # ---- one world step ------------------------------------------------------------------------------------
+    def _advance(self, hold_still: bool = False) -> None:
+        fw, plant = self.fw, self.plant
+        t0 = self.t_us
+        t1 = t0 + self.dt_us
+        out = fw.outputs()
+        plant.set_outputs(out)
+        plant.advance(fw, t0, t1)
+        while True:
+            nxt = self.up.next_delivery_us()
+            if nxt is not None and nxt <= fw.time_us:
+                fw.uart_write(self.up.receive(fw.time_us))
+                continue
+            target = t1 if nxt is None or nxt > t1 else nxt
+            fw.step_to(target)
+            trig = fw.take_triggers()
+            if trig:
+                self.triggers += len(trig)
+                plant.on_triggers(fw, trig)
+            if fw.time_us >= t1 and (nxt is None or nxt > t1):
+                break
+        self.t_us = t1
+        self.down.send(t1, fw.uart_read())
+        data = self.down.receive(t1)
+        if data:
+            self.host.feed(t1, data)
+            if self.on_downlink is not None:
+                self.on_downlink(t1, data)
+        if self.cfg.record_outputs:
+            self.outputs_log.append((t1, fw.outputs()))
+
+    def step(self) -> None:
+        self._advance()
+        if self.host_logic is not None:
+            self.host_logic(self, self.t_us)
+        tx = self.host.take_tx()
+        if tx:
+            self.up.send(self.t_us, tx)
+
+    def run_for(self, seconds: float, until: Callable[["SilSession"], bool] | None = None) -> None:
+        end = self.t_us + int(round(seconds * 1e6))
+        while self.t_us < end:
+            self.step()
+            if until is not None and until(self):
+                return
+
+    # ---- truth --------------------------------------------------------------------------------------------------
+    @property
+    def pose(self) -> Pose2D:
+        return self.plant.robot.pose
+
+    def believed_pose(self) -> Pose2D | None:
+        """The host's pose: firmware odometry (odometry frame = start pose) in the world frame."""
+        o = self.host.odometry
+        if o is None:
+            return None
+        return self.sc.start.compose(Pose2D(o.x_m, o.y_m, o.heading_rad))
+
+
+class PlannerHost:
+    """The host companion: heartbeats, a planner on the laser and the firmware's odometry, and
+    AGNAV_DRIVE_SETPOINT at ``control_hz``. The laser hangs off the host (it is read from the true
+    pose) but the planner places it with the believed pose, as the real host does."""
+
+    def __init__(self, sc: Scenario, planner: str = "goal_seek", heartbeat_hz: float = 2.0,
+                 control_hz: float | None = None, behaviours: tuple[bool, bool, bool] | None = None) -> None:
+        self.sc = sc
+        if planner == "goal_seek":
+            self.ctrl = make_standin(planner, self.planner_params(sc))
+        else:  # a host planner of agnav_host.planning, built as the ideal runner builds it
+            from ..sim import runner as _runner
+
+            self.ctrl = _runner._make_controller(sc, planner)  # type: ignore[attr-defined]
+        self.ctrl.reset()
+        self.uses_sonar = bool(getattr(self.ctrl, "uses_sonar", False))
+        self.hb_us = int(1e6 / heartbeat_hz)
+        self.ctrl_us = int(1e6 / (control_hz or sc.control_hz))
+        self.next_hb = 0
+        self.next_ctrl = 0
+        self.goal_index = 0
+        self.behaviours = behaviours
+        self.commands: list[tuple[int, DriveCommand]] = []
+        self.turn_speed_m_s = 0.1
+        self.max_steer_rad = math.radians(45.0 if sc.robot_kind != "ackermann" else 30.0)  # MAX_STEER_CDEG
+
+    @staticmethod
+    def planner_params(sc: Scenario) -> GoalSeekParams:
+        if sc.robot_kind == "ackermann":
+            return _standin_params(sc)
+        p = sc.robot_params
+        # Wider margin than the ideal runner's: the firmware's passive safety stops the robot when
+        # the front cone of the sonar ring sees an obstacle nearer than AVOID_STOP_MM (300 mm).
+        return GoalSeekParams(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s,
+                              margin_m=0.2)
+
+    def to_setpoint(self, cmd: DriveCommand) -> tuple[float, float]:
+        """(steer_rad, speed_m_s) for the firmware. It takes a steering angle for every drive kind
+        and turns a differential robot like a car of wheelbase = track (drive.h), so it cannot turn
+        on the spot: a turn on the spot becomes the tightest arc *backwards* at a crawl
+        (``turn_speed_m_s``), i.e. a three-point turn that also opens room ahead."""
+        if cmd.steer_rad is not None:
+            return cmd.steer_rad, cmd.speed_m_s
+        track = self.sc.robot_params.track_m
+        v = cmd.speed_m_s
+        if abs(v) < 1e-6:
+            if abs(cmd.yaw_rate_rad_s) < 1e-6:
+                return 0.0, 0.0
+            return -math.copysign(self.max_steer_rad, cmd.yaw_rate_rad_s), -self.turn_speed_m_s
+        steer = math.atan(track * cmd.yaw_rate_rad_s / v)
+        return max(-self.max_steer_rad, min(self.max_steer_rad, steer)), v
+
+    @staticmethod
+    def sonar_frame(s: SilSession) -> SonarFrame | None:
+        """The firmware's latest AGNAV_SONAR_RING as a SonarFrame (NaN = no echo / fault / stale)."""
+        f = s.host.sonar
+        if f is None:
+            return None
+        st = np.array(f.status[:12])
+        r = np.where(st == 0, np.array(f.ranges_mm[:12], dtype=float) * 1e-3, np.nan)
+        return SonarFrame(f.t_us * 1e-6, st != 3, r * 2.0 / 343.0 * 1e6, r)
+
+    def __call__(self, s: SilSession, t_us: int) -> None:
+        h = s.host
+        if self.behaviours is not None:
+            h.set_behaviours(*self.behaviours)
+            self.behaviours = None
+        if t_us >= self.next_hb:
+            h.heartbeat()
+            self.next_hb += self.hb_us
+        if t_us < self.next_ctrl:
+            return
+        self.next_ctrl += self.ctrl_us
+        pose = s.believed_pose()
+        if pose is None:
+            return
+        goal = self.sc.goals[min(self.goal_index, len(self.sc.goals) - 1)]
+        scan = None
+        if self.sc.laser is not None:
+            true = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
+            scan = LaserScan(true.angle_min_rad, true.angle_increment_rad, true.ranges_m, true.range_max_m, true.stamp_s,
+                             pose.compose(self.sc.laser.mount))
+        o = h.odometry
+        assert o is not None
+        sonar = self.sonar_frame(s) if self.uses_sonar else None
+        cmd = self.ctrl.step(Observation(s.t_s, pose, o.speed_m_s, o.yaw_rate_rad_s, goal, scan, sonar))
+        h.setpoint_si(*self.to_setpoint(cmd))
+        self.commands.append((t_us, cmd))
+
+
+@dataclass
+class SilRunResult:
+    run: RunResult
+    tlog: bytes
+    firmware_status: list[tuple[float, int, int, int, int, int, int]]
+    link_stats: dict[str, int]
+    wall_s: float = 0.0
+
+
+def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, duration_s: float | None = None,
+                     goal: Goal | None = None, config: SilConfig | None = None,
+                     progress: Callable[[float, float], None] | None = None) -> SilRunResult:
+    """The ideal runner's scenario loop with the real firmware in the loop (same metrics and
+    end reasons: arrived, collision, fell_in_hole, timeout)."""
+    import time
+
+    if goal is not None:
+        sc = replace(sc, goals=[goal])
+    duration = sc.duration_s if duration_s is None else duration_s
+    host = PlannerHost(sc, planner)
+    s = SilSession(sc, seed, config, host)
+    wall0 = time.perf_counter()
+    try:
+        s.provision()
+        t_start = s.t_us
+        rec_every = max(1, int(round(sc.dt_s / s.cfg.world_dt_s)))
+        n_steps = int(round(duration / s.cfg.world_dt_s))
+        rows = [(0.0, s.pose.x_m, s.pose.y_m, s.pose.yaw_rad, 0.0, 0.0, s.plant.clearance(0.0), 0)]
+        reason = "timeout"
+        arrival_s = None
+        gi = 0
+        prog_every = max(1, int(round(1.0 / s.cfg.world_dt_s)))
+        for k in range(1, n_steps + 1):
+            s.step()
+            t = (s.t_us - t_start) * 1e-6
+            r = s.plant.robot
+            p = r.pose
+            cl = s.plant.clearance(s.t_s)
+            if k % rec_every == 0 or cl < 0:
+                rows.append((t, p.x_m, p.y_m, p.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl, gi))
+            if progress is not None and k % prog_every == 0:
+                progress(t, duration)
+            if cl < 0.0:
+                reason = "collision"
+                break
+            g = sc.goals[gi]
+            if math.hypot(g.x_m - p.x_m, g.y_m - p.y_m) <= g.tolerance_m:
+                if gi + 1 < len(sc.goals):
+                    gi += 1
+                    host.goal_index = gi
+                else:
+                    reason = "arrived"
+                    arrival_s = t
+                    if rows[-1][0] != t:
+                        rows.append((t, p.x_m, p.y_m, p.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl, gi))
+                    break
+        arr = np.array(rows, dtype=float)
+        last = sc.goals[-1]
+        metrics = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6],
+                                     (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s)
+        run = RunResult(sc.name, planner, seed, metrics, arr, reason)
+        status = [(st.t_us * 1e-6, st.time_boot_ms, st.layer, st.reason, st.failsafe_flags, st.steer_cdeg, st.speed_mm_s)
+                  for st in s.host.status_log]
+        stats = {"up_frames": s.up.frames_sent, "up_lost": s.up.frames_lost, "up_dropped": s.up.frames_dropped,
+                 "down_frames": s.down.frames_sent, "down_lost": s.down.frames_lost,
+                 "down_dropped": s.down.frames_dropped, "encoder_edges": s.plant.edges_queued,
+                 "sonar_echoes": s.plant.echoes, "firmware_loop_passes": s.fw.loop_passes,
+                 "late_events": s.fw.late_events}
+        return SilRunResult(run, s.tlog.getvalue(), status, stats, time.perf_counter() - wall0)
+    finally:
+        s.close()
+
+
+def write_sil_outputs(res: SilRunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:
+    """The ideal runner's files (summary.json, run_info.json, trajectory.csv[, .png]) plus
+    ``link.tlog`` (both directions, see :class:`~agnav_host.sil.link.Tlog`) and ``firmware.csv``
+    (AGNAV_BEHAVIOUR_STATUS as the host received it)."""
+    out = Path(out_dir)
+    paths = write_outputs(res.run, out, plot=plot)
+    info = out / "run_info.json"
+    d = json.loads(info.read_text(encoding="utf-8"))
+    d.update(firmware="sil", link=res.link_stats)
+    info.write_text(json.dumps(d, indent=2) + "\n", encoding="utf-8")
+    tl = out / "link.tlog"
+    tl.write_bytes(res.tlog)
+    fc = out / "firmware.csv"
+    lines = [",".join(FIRMWARE_CSV_COLUMNS)] + [f"{r[0]:.6f}," + ",".join(str(int(v)) for v in r[1:]) for r in res.firmware_status]
+    fc.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return [*paths, tl, fc]

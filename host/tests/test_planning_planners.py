@@ -1,0 +1,129 @@
+import math
+
+import numpy as np
+import pytest
+
+from agnav_host.planning import RobotSpec, make_planner, planner_names
+from agnav_host.planning.base import InvalidObservation
+
+from _planning_helpers import empty_scan, obs_with, sonar_frame, wall_ahead
+
+SPEC = RobotSpec(radius_m=0.225, max_speed_m_s=0.5)
+ISSUE_NAMES = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]
+LASER = [n for n in ISSUE_NAMES if n != "subsumption"]
+
+
+def _free_obs(name):
+    sonar = sonar_frame([np.nan] * 12) if name == "subsumption" else None
+    return obs_with(empty_scan(), (5.0, 0.0), sonar)
+
+
+def _run(p, obs, n=20):
+    cmd = None
+    for k in range(n):
+        obs.t_s = k * SPEC.control_dt_s
+        cmd = p.step(obs)
+    return cmd
+
+
+@pytest.mark.parametrize("name", ISSUE_NAMES)
+def test_goes_straight_when_free(name):
+    p = make_planner(name, SPEC)
+    cmd = _run(p, _free_obs(name))
+    assert cmd.speed_m_s > 0.05, f"{name}: speed {cmd.speed_m_s:.3f} m/s in free space"
+    assert abs(cmd.yaw_rate_rad_s) < 0.05, f"{name}: yaw rate {cmd.yaw_rate_rad_s:.3f} rad/s with the goal dead ahead"
+
+
+WALL_AHEAD = """
+[scenario]
+name = "wall_ahead"
+duration_s = 40.0
+[robot]
+model = "diff_drive"
+start = { x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }
+radius_m = 0.225
+max_speed_m_s = 0.5
+[laser]
+model = "tim561"
+mount = { x_m = 0.15, y_m = 0.0, yaw_deg = 0.0 }
+[sonar]
+enabled = true
+[[goals]]
+x_m = 4.5
+y_m = 0.2
+[[walls]]   # 2.4 m wide wall across the straight line, 1.5 m ahead
+points = [[1.5, -1.2], [1.5, 1.2]]
+[[walls]]
+points = [[-1.0, -3.0], [6.0, -3.0], [6.0, 3.0], [-1.0, 3.0]]
+closed = true
+"""
+
+
+KNOWN_WALL_FAILURES = {"subsumption": "sonar-only reactive layers stall in front of a 2.4 m wall (see docs/planning.md)"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_WALL_FAILURES[n], strict=True))
+                                  if n in KNOWN_WALL_FAILURES else n for n in ISSUE_NAMES])
+def test_avoids_a_wall_ahead(name):
+    """Closed loop in the simulator: a wall across the straight line to the goal. The planner must
+    get round it without touching it and reach the goal."""
+    from agnav_host.sim import parse_scenario, run_scenario
+
+    r = run_scenario(parse_scenario(WALL_AHEAD, "<wall_ahead>"), name, seed=0)
+    assert r.end_reason == "arrived", f"{name}: {r.end_reason} at ({r.trajectory[-1, 1]:.2f}, {r.trajectory[-1, 2]:.2f})"
+    assert r.metrics.min_clearance_m > 0.0
+    assert np.abs(r.trajectory[:, 2]).max() > 1.0, f"{name}: never left the straight line"
+
+
+def test_subsumption_stops_or_turns_at_a_sonar_wall():
+    p = make_planner("subsumption", SPEC)
+    r = np.full(12, np.nan)
+    r[[0, 1, 11]] = 0.25  # front cone blocked inside avoid_stop_m
+    obs = obs_with(None, (5.0, 0.0), sonar_frame(r), speed=0.3)
+    cmd = p.step(obs)
+    assert cmd.speed_m_s <= 0.0
+
+
+def test_subsumption_canyon_timer_holds_the_turn_direction():
+    p = make_planner("subsumption", SPEC)
+    p.params.__class__  # frozen dataclass: defaults mirror BEHAVIOUR_PARAMS_DEFAULT
+    left_near = np.full(12, 3.0)
+    left_near[0] = 0.8
+    left_near[[1, 2]] = 0.9  # left nearer -> turn right
+    cmd = p.step(obs_with(None, (-5.0, 0.1), sonar_frame(left_near), t=0.0))
+    assert cmd.yaw_rate_rad_s < 0.0
+    right_near = np.full(12, 3.0)
+    right_near[0] = 0.8
+    right_near[[10, 11]] = 0.9  # now the right is nearer: without the timer it would turn left
+    cmd = p.step(obs_with(None, (-5.0, 0.1), sonar_frame(right_near), t=0.5))
+    assert cmd.yaw_rate_rad_s < 0.0 and p.reason.name == "CANYON_TIMER"
+    cmd = p.step(obs_with(None, (-5.0, 0.1), sonar_frame(right_near), t=2.5))  # timer ran out
+    assert cmd.yaw_rate_rad_s > 0.0
+
+
+def test_missing_sensor_raises_invalid_observation():
+    with pytest.raises(InvalidObservation):
+        make_planner("him", SPEC).step(obs_with(None, (5.0, 0.0)))
+    with pytest.raises(InvalidObservation):
+        make_planner("subsumption", SPEC).step(obs_with(empty_scan(), (5.0, 0.0)))
+
+
+def test_step_is_fast_enough_on_a_full_scan():
+    """Compute budget: each planner answers a 541-beam cluttered scan well inside 2 ms (the benchmark
+    reports the median per step; this guards against a regression by an order of magnitude)."""
+    import time
+
+    from _planning_helpers import scan_from_segments
+
+    rng = np.random.default_rng(3)
+    segs = [(float(x), float(y), float(x) + 0.3, float(y) + 0.3) for x, y in rng.uniform(-4, 4, (60, 2))]
+    scan = scan_from_segments(segs)
+    for name in LASER:
+        p = make_planner(name, SPEC)
+        obs = obs_with(scan, (5.0, 1.0))
+        p.step(obs)
+        t = time.perf_counter()
+        for _ in range(20):
+            p.step(obs)
+        per = (time.perf_counter() - t) / 20
+        assert per < 2e-3, f"{name}: {per * 1e3:.2f} ms per step"

@@ -1,0 +1,77 @@
+import json
+
+import pytest
+
+from agnav_host.cli import main
+from agnav_host.planning import PlanningError, RobotSpec, UnknownPlanner, canonical_name, make_planner, planner_names
+from agnav_host.planning.base import DeadlineMissed, NoPathFound
+from agnav_host.planning._grid import OccupancyGrid
+from agnav_host.sim import load_scenario, run_scenario
+
+ISSUE_NAMES = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]
+
+
+def test_registry_has_the_issue_names_and_builds_each():
+    assert planner_names()[: len(ISSUE_NAMES)] == ISSUE_NAMES  # later planners (timed) come after
+    for n in ISSUE_NAMES:
+        p = make_planner(n, RobotSpec())
+        assert p.name == n
+        p.reset()
+
+
+def test_alias_and_unknown_name():
+    assert canonical_name("follow_path") == "follow-path"
+    with pytest.raises(UnknownPlanner, match=r"unknown planner 'astar'; known: flb, him, vfh"):
+        make_planner("astar")
+    assert issubclass(UnknownPlanner, ValueError) and issubclass(UnknownPlanner, PlanningError)
+
+
+def test_params_are_validated():
+    with pytest.raises(ValueError, match="trsh"):
+        make_planner("flb", RobotSpec(), {"trsh": 1.5})
+    with pytest.raises(ValueError, match="bad parameters"):
+        make_planner("flb", RobotSpec(), {"no_such_field": 1})
+    assert make_planner("flb", RobotSpec(), {"trsh": 0.3}).params.trsh == 0.3
+
+
+def test_cli_sim_planner_choice_and_unknown(tmp_path, capsys):
+    assert main(["sim", "--planner", "vfh", "--duration", "2", "--out", str(tmp_path / "a"), "--quiet", "--no-plot"]) == 0
+    assert json.loads((tmp_path / "a" / "run_info.json").read_text())["planner"] == "vfh"
+    assert main(["sim", "--planner", "nope", "--out", str(tmp_path / "b"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown planner 'nope'" in err and "follow-path" in err and "goal_seek" in err
+
+
+def test_default_sim_run_succeeds_with_seed_0(tmp_path):
+    """`make demo` runs `agnav sim --out DIR` (default scenario, seed 0)."""
+    assert main(["sim", "--out", str(tmp_path), "--quiet", "--no-plot"]) == 0
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["success"] is True, s
+
+
+def test_astar_is_bounded():
+    g = OccupancyGrid((0.0, 0.0), 40.0, 0.1)
+    with pytest.raises(DeadlineMissed):
+        g.plan((-15.0, -15.0), (15.0, 15.0), 0.3, margin_cells=100, max_expansions=50)
+    import numpy as np
+
+    wall = np.column_stack((np.full(400, 1.0), np.linspace(-20, 20, 400)))
+    for _ in range(3):
+        g.add_points(wall)
+    with pytest.raises(NoPathFound):
+        g.plan((0.0, 0.0), (3.0, 0.0), 0.3, margin_cells=10)
+
+
+KNOWN = {
+    "apf": "APF (ref 001) assumes obstacle-free lines between waypoints; it stalls at the corridor's plates",
+    "subsumption": "sonar-only firmware layers wander in the 3 m corridor (see docs/planning.md)",
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN[n], strict=True)) if n in KNOWN else n
+                                  for n in ISSUE_NAMES])
+def test_every_planner_reaches_the_goal_on_corridor_obstacles(name):
+    r = run_scenario(load_scenario("corridor_obstacles"), name, seed=0)
+    end = r.trajectory[-1]
+    assert r.end_reason == "arrived", f"{name}: {r.end_reason} at ({end[1]:.2f}, {end[2]:.2f}) after {r.metrics.time_s:.1f} s"
+    assert r.metrics.min_clearance_m > 0.0
