@@ -120,6 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agnav`` console script; returns the exit code."""
+    _load_command_modules()  # first: their negative-number options must be known to the joiner
     args = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
     ns = build_parser().parse_args(args)
     handler: Handler = ns._handler

@@ -133,3 +133,16 @@ def test_two_ruts_edges_and_midline():
 
 def test_no_ruts_on_flat_ground():
     assert detect_ruts(_scan(World()), TM).midline_xy is None
+
+
+def test_rut_follower_steers_towards_the_midline():
+    from agnav_host.perception import RutFollower, RutFollowerParams
+    from agnav_host.types import Goal, Observation
+
+    x_line = 0.3 + H / math.tan(TILT)
+    for y_mid, sign in ((0.3, 1.0), (-0.3, -1.0)):
+        rut = Rut(((x_line - 3, y_mid), (x_line + 3, y_mid)), width_m=0.3, depth_m=0.12, spacing_m=1.5, count=2)
+        ctrl = RutFollower(RutFollowerParams(tilted=TM))
+        obs = Observation(0.0, Pose2D(), 0.4, 0.0, Goal(0, 0), None, None, {"tilted_scan": _scan(World(ruts=[rut]))})
+        cmd = ctrl.step(obs)
+        assert sign * cmd.yaw_rate_rad_s > 0.02

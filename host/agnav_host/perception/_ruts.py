@@ -11,7 +11,6 @@ ends of the ruts"), or the centre of a single rut.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
