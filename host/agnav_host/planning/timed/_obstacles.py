@@ -14,7 +14,8 @@ i.e. abreast of the obstacle's centre and Rsm + w to its side (Rsm safety margin
 Moving obstacles: 003 registers two detections, estimates the obstacle's step and checks whether the
 position two steps ahead falls in the robot's collision radius. AgNav uses the tracker's velocity
 instead and predicts over the whole horizon, growing the obstacle's radius with the velocity
-uncertainty: r(t) = r0 + k (sigma_p + sigma_v (t - t_stamp)) (k = 2: about 95 % per axis). The plan is
+uncertainty: r(t) = r0 + k sigma_p + min(k sigma_v (t - t_stamp), max_growth) (k = 2: about 95 % per
+axis; the growth is capped because tracks are refreshed every step and walkers turn). The plan is
 checked against that disc at every sample time (space-time), not against a two-step snapshot.
 """
 
@@ -61,8 +62,9 @@ class SpaceTimeObstacle(Protocol):
 @dataclass(frozen=True)
 class MovingObstacle:
     """A tracked obstacle: centre (m), velocity (m/s), radius (m), 1-sigma speed and position
-    uncertainty, time of the estimate (s). Stand-in for perception's track record until it lands;
-    :meth:`from_any` adapts tuples ``(x, y, vx, vy, radius, speed_sigma)`` and objects with those fields."""
+    uncertainty, time of the estimate (s). :meth:`from_any` adapts tuples ``(x, y, vx, vy, radius,
+    speed_sigma)`` and objects with those fields, e.g. ``agnav_host.perception``'s ``Track`` (its position
+    covariance gives the position sigma)."""
 
     x_m: float
     y_m: float
@@ -73,6 +75,7 @@ class MovingObstacle:
     pos_sigma_m: float = 0.05
     stamp_s: float = 0.0
     k_sigma: float = 2.0
+    max_growth_m: float = 0.75  # the uncertainty disc stops growing here (walkers turn, tracks update)
 
     @property
     def speed_m_s(self) -> float:
@@ -81,7 +84,7 @@ class MovingObstacle:
     def predict(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
         dt = np.maximum(np.asarray(t_s, dtype=float) - self.stamp_s, 0.0)
         xy = np.column_stack((self.x_m + self.vx_m_s * dt, self.y_m + self.vy_m_s * dt))
-        r = self.radius_m + self.k_sigma * (self.pos_sigma_m + self.speed_sigma_m_s * dt)
+        r = self.radius_m + self.k_sigma * self.pos_sigma_m + np.minimum(self.k_sigma * self.speed_sigma_m_s * dt, self.max_growth_m)
         return xy, r
 
     @staticmethod
@@ -102,9 +105,16 @@ class MovingObstacle:
                 raise ValueError(f"moving obstacle {o!r} lacks {names[0]}")
             return default
 
+        pos_sigma = get("pos_sigma_m", default=0.05)
+        cov = getattr(o, "covariance", None)  # perception's Track: state covariance, position block first
+        if cov is not None:
+            try:
+                pos_sigma = math.sqrt(max(float(cov[0][0]), float(cov[1][1]), 0.0))
+            except (TypeError, IndexError, ValueError):
+                pass
         return MovingObstacle(get("x_m", "x"), get("y_m", "y"), get("vx_m_s", "vx"), get("vy_m_s", "vy"),
                               get("radius_m", "radius", default=0.25), get("speed_sigma_m_s", "speed_sigma", default=0.1),
-                              get("pos_sigma_m", default=0.05), get("stamp_s", "t_s", default=stamp_s))
+                              pos_sigma, get("stamp_s", "t_s", default=stamp_s))
 
 
 def moving_obstacles_from(items: Sequence[Any] | None, stamp_s: float) -> list[MovingObstacle]:

@@ -105,6 +105,37 @@ def _leg_coeffs(a: BoundaryState, b: BoundaryState, lam: float, wheelbase_m: flo
     return hermite5_coeffs(sa, sb, 1.0, wheelbase_m)
 
 
+_SCALES = np.asarray(LAMBDA_SCALES)
+
+
+def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
+    """Coefficients (6, m) of x(u), y(u) for every tangent length in ``lam`` (m,) at once: the same
+    equations as :func:`~._poly.poly003_coeffs` / :func:`~._poly.hermite5_coeffs` with T = 1, vectorised."""
+    if form != "003":
+        cs = [_leg_coeffs(a, b, float(L), wheelbase_m, form) for L in lam]
+        return np.column_stack([c[0] for c in cs]), np.column_stack([c[1] for c in cs])
+    ca, cb = math.cos(a.yaw_rad), math.cos(b.yaw_rad)
+    ta, tb = math.tan(a.yaw_rad), math.tan(b.yaw_rad)
+    ka, kb = math.tan(a.steer_rad) / wheelbase_m, math.tan(b.steer_rad) / wheelbase_m
+    vx0, vxT = lam * ca, lam * cb
+    d = b.x_m - a.x_m
+    a2 = 3.0 * d - 2.0 * vx0 - vxT
+    a3 = -2.0 * d + vx0 + vxT
+    z = np.zeros_like(lam)
+    CX = np.vstack((np.full_like(lam, a.x_m), vx0, a2, a3, z, z))
+    xdd0, xddT = 2.0 * a2, 2.0 * a2 + 6.0 * a3
+    ay0 = ka * vx0 * vx0 / ca**3 + ta * xdd0  # 003 chain rule (see _poly)
+    ayT = kb * vxT * vxT / cb**3 + tb * xddT
+    vy0, vyT = vx0 * ta, vxT * tb
+    c0, c1, c2 = a.y_m, vy0, 0.5 * ay0
+    r0 = b.y_m - (c0 + c1 + c2)
+    r1 = vyT - (c1 + 2.0 * c2)
+    r2 = ayT - 2.0 * c2
+    CY = np.vstack((np.full_like(lam, c0), c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
+                    (12.0 * r0 - 6.0 * r1 + r2) / 2.0))
+    return CX, CY
+
+
 _BASIS: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
 
@@ -160,9 +191,7 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
         ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
         rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
         form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
-        cands = [_leg_coeffs(ra, rb, scale * chord, wheelbase_m, form) for scale in LAMBDA_SCALES]
-        CX = np.column_stack([c[0] for c in cands])
-        CY = np.column_stack([c[1] for c in cands])
+        CX, CY = _leg_candidates(ra, rb, chord * _SCALES, wheelbase_m, form)
         _, _, sp, kap, _ = _eval_leg(CX, CY, 41)
         ok = sp.min(axis=0) >= 1e-3 * chord  # no cusp
         if not ok.any():

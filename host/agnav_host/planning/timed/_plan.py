@@ -27,7 +27,13 @@ class TimedLimits:
     servo reaches); ``plan_steer_rad`` the largest a plan may use, leaving the difference to the
     tracking law for corrections. The speed band is the calibrated one (43.5-200 cm/s) and
     ``accel_m_s2`` the acceleration the plan may ask for. ``radius_m`` / ``footprint_offset_m``: the
-    footprint disc and its centre ahead of the rear axle (half the 174 mm wheelbase)."""
+    footprint disc and its centre ahead of the rear axle (half the 174 mm wheelbase).
+
+    The end of every plan is the car's real stop: it comes in at v_min, the command drops to 0 and the
+    speed controller's lag (``stop_lag_s``) brings it to rest over v_min * lag (about 11 cm), modelled
+    as a constant deceleration v_min / (2 lag); the ``creep_m`` before it are driven at v_min so the car
+    enters the stop at that speed. The plan's *arrival* is when that stop brings the car
+    within ``arrive_tol_m`` of the goal; it comes to rest a fraction of a second later."""
 
     wheelbase_m: float = 0.174
     max_steer_rad: float = math.radians(20.0)
@@ -38,6 +44,9 @@ class TimedLimits:
     cruise_m_s: float = 0.8  # speed of untimed plans (no arrival time given)
     radius_m: float = 0.16
     footprint_offset_m: float = 0.087
+    stop_lag_s: float = 0.25  # speed controller time constant: the car stops over v_min * lag
+    arrive_tol_m: float = 0.05  # "arrived" = within this of the goal position
+    creep_m: float = 0.3  # last stretch before the stop driven at v_min
 
     def __post_init__(self) -> None:
         if not 0 < self.plan_steer_rad <= self.max_steer_rad < math.pi / 2:
@@ -95,14 +104,17 @@ class TimedPlan:
     limits: TimedLimits
     states: tuple[BoundaryState, ...]
     tags: tuple[str, ...] = field(default=())
+    settle_s: float = 0.0  # from arrival (within arrive_tol_m) to rest, s
 
     @property
     def arrival_s(self) -> float:
-        return self.t0_s + self.profile.duration_s
+        """When the plan reaches the goal (within ``limits.arrive_tol_m``), absolute s."""
+        return self.t0_s + self.profile.duration_s - self.settle_s
 
     @property
     def duration_s(self) -> float:
-        return self.profile.duration_s
+        """From the plan's start to its arrival, s."""
+        return self.profile.duration_s - self.settle_s
 
     @property
     def goal(self) -> BoundaryState:
@@ -161,13 +173,14 @@ def via_state(prev_xy: tuple[float, float], via_xy: tuple[float, float], next_xy
 def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arrival_s: float | None,
                limits: TimedLimits | None = None, vias: tuple[BoundaryState, ...] = (), *,
                dwell_first_s: float = 0.0, deadline: float | None = None, tags: tuple[str, ...] = (),
-               auto_via: bool = True) -> TimedPlan:
+               auto_via: bool = True, path: GeoPath | None = None) -> TimedPlan:
     """Plan from ``start`` (its speed and steering are the current ones) through ``vias`` to ``goal``
     (reached at rest), arriving at the absolute time ``arrival_s`` (None: untimed, at the cruise speed).
 
     ``auto_via``: when the direct polynomial needs more steering than allowed and no via points were
     given, try a few via points (ahead of the start, behind the goal, beside the chord) and keep the
     shortest path that fits the steering limit.
+    ``path``: reuse this geometry (it must run through exactly these states; re-timing candidates).
     ``dwell_first_s``: brake now and wait this long before going on (the "yield" retiming).
     Never raises for an impossible request: the plan comes back with ``feasible`` False, the reason and
     the earliest arrival, timed for that earliest arrival so it can still be driven. ``deadline``
@@ -179,7 +192,8 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     s0 = BoundaryState(start.x_m, start.y_m, start.yaw_rad, steer0, max(0.0, start.speed_m_s))
     states = (s0, *vias, goal)
     try:
-        path = build_path(list(states), lim.wheelbase_m)
+        if path is None:
+            path = build_path(list(states), lim.wheelbase_m)
         if auto_via and not vias and math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
             found = _auto_via(s0, goal, lim, deadline)
             if found is not None:
@@ -216,35 +230,54 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
         t_pre += dwell_first_s
         v0 = 0.0
     d_rest = S - s_pre
-    t_min = t_pre + leg_min_time_s(d_rest, v0, 0.0, sp)
+    # the stop tail: in at v_min, lag stop over v_min * lag (see TimedLimits)
+    a_stop = lim.v_min_m_s / (2.0 * lim.stop_lag_s)
+    d_tail = lim.v_min_m_s * lim.stop_lag_s
+    use_tail = d_rest > 2.0 * d_tail and lim.v_min_m_s > 0
+    if use_tail:
+        settle = math.sqrt(2.0 * min(lim.arrive_tol_m, d_tail) / a_stop)
+        t_tail = 2.0 * lim.stop_lag_s
+        # a short creep at v_min first, so that the speed controller has settled when the stop starts
+        d_creep = min(lim.creep_m, max(0.0, d_rest - 3.0 * d_tail))
+        t_creep = d_creep / lim.v_min_m_s
+        tail = SpeedProfile(np.array([0.0, t_creep, t_creep + t_tail]), np.array([0.0, d_creep]),
+                            np.array([lim.v_min_m_s, lim.v_min_m_s]), np.array([0.0, -a_stop]), ("cruise", "stop"))
+        if d_creep <= 0:
+            tail = SpeedProfile(np.array([0.0, t_tail]), np.array([0.0]), np.array([lim.v_min_m_s]), np.array([-a_stop]), ("stop",))
+        d_main, v_end, t_after = d_rest - d_tail - d_creep, lim.v_min_m_s, t_creep + t_tail - settle
+    else:
+        settle, tail, d_main, v_end, t_after = 0.0, None, d_rest, 0.0, 0.0
+    t_min = t_pre + leg_min_time_s(d_main, v0, v_end, sp) + t_after
     if arrival_s is None:
         from ._profile import leg_time_s
 
-        tau = t_pre + max(leg_time_s(d_rest, v0, 0.0, min(lim.cruise_m_s, sp.v_max_m_s), sp.accel_m_s2), t_min - t_pre)
-        if not math.isfinite(tau):
-            tau = t_min
+        tau = t_pre + t_after + leg_time_s(d_main, v0, v_end, min(lim.cruise_m_s, sp.v_max_m_s), sp.accel_m_s2)
+        tau = max(tau, t_min) if math.isfinite(tau) else t_min
     else:
         tau = arrival_s - t_start_s
     earliest = t_start_s + t_min if math.isfinite(t_min) else None
     try:
-        leg = solve_leg(d_rest, tau - t_pre, v0, 0.0, sp)
+        leg = solve_leg(d_main, tau - t_pre - t_after, v0, v_end, sp)
     except LegInfeasible as e:
         feasible = False
         if math.isfinite(e.min_time_s):
-            reasons.append(f"arrival in {tau:.2f} s is too early: {e.reason}; earliest arrival in {t_min:.2f} s")
-            leg = solve_leg(d_rest, e.min_time_s, v0, 0.0, sp)
+            reasons.append(f"arrival in {tau:.2f} s is too early: {S:.2f} m need an average of {S / max(tau, 1e-9):.2f} m/s; "
+                           f"with v_max {sp.v_max_m_s:.2f} m/s, {sp.accel_m_s2:.2f} m/s^2 and the stop at v_min the "
+                           f"earliest arrival is in {t_min:.2f} s")
+            leg = solve_leg(d_main, e.min_time_s, v0, v_end, sp)
         else:
             reasons.append(e.reason)
-            leg = solve_leg(d_rest, max(leg_min_time_s(d_rest, 0.0, 0.0, sp), 1e-3), 0.0, 0.0, sp)
+            leg = solve_leg(d_main, max(leg_min_time_s(d_main, 0.0, v_end, sp), 1e-3), 0.0, v_end, sp)
             earliest = None
-    profile = concat_profiles(pre + [leg]) if pre else leg
+    parts = pre + [leg] + ([tail] if tail is not None else [])
+    profile = concat_profiles(parts) if len(parts) > 1 else leg
     if feasible:
         reason = "ok"
     else:
         reason = "; ".join(reasons)
     if steer_need > lim.plan_steer_rad + 1e-6:
         earliest = None  # no timing fixes the geometry
-    return TimedPlan(path, profile, t_start_s, arrival_s, feasible, reason, earliest, lim, states, tags)
+    return TimedPlan(path, profile, t_start_s, arrival_s, feasible, reason, earliest, lim, states, tags, settle)
 
 
 def _auto_via(s0: BoundaryState, goal: BoundaryState, lim: TimedLimits,

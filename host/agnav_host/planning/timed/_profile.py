@@ -183,6 +183,14 @@ def solve_leg(d: float, tau: float, v_s: float, v_e: float, lim: SpeedLimits, al
     v_lo = min(lim.v_min_m_s, vp)
     t_slow = leg_time_s(d, v_s, v_e, v_lo, a)
     if tau <= t_slow + 1e-9:
+        # closed form when the cruise is above both end speeds: a tau v = 2v^2 - (v_s + v_e) v + a d
+        # - v^2 + (v_s^2 + v_e^2) / 2, i.e. v^2 - (v_s + v_e + a tau) v + a d + (v_s^2 + v_e^2) / 2 = 0
+        bq = v_s + v_e + a * tau
+        disc = bq * bq - 4.0 * (a * d + 0.5 * (v_s * v_s + v_e * v_e))
+        if disc >= 0.0:
+            v = 0.5 * (bq - math.sqrt(disc))
+            if max(v_s, v_e) - 1e-9 <= v <= vp + 1e-9 and v >= v_lo - 1e-9 and abs(leg_time_s(d, v_s, v_e, v, a) - tau) < 1e-6:
+                return _profile_from(_phases_for(d, v_s, v_e, v, a))
         lo, hi = v_lo, vp  # t(lo) >= tau >= t(hi)
         for _ in range(50):
             mid = 0.5 * (lo + hi)

@@ -3,9 +3,13 @@
 Candidates, in order of how little they change (the first clear and feasible one wins):
 
 1. the catch-up replan itself (same path shape from the current state, same arrival time);
-2. *yield*: brake, wait ``dwell`` s for the obstacle to pass, then catch up (same path);
+2. *yield* briefly (0.5, 1 s): brake, wait for the obstacle to pass, then catch up (same path);
 3. *deviate*: a via point beside the predicted conflict (behind a crossing obstacle, or to either side
-   of the path), optionally with a short wait, with the same arrival time.
+   of the path), with the same arrival time; the given deviation points (003's) first;
+4. longer yields, then wider deviations.
+
+An oncoming obstacle (moving against the robot's heading) is passed, not waited for, as in 003
+(fig. 4.4 b): its deviations go first and the waits last.
 
 When no candidate keeps the arrival time, the clear candidate with the earliest arrival is returned
 (its plan says ``feasible`` False and carries the new earliest arrival). A candidate is clear when it
@@ -29,7 +33,7 @@ from ._poly import BoundaryState
 
 __all__ = ["Resolution", "resolve", "YIELD_DWELLS_S"]
 
-YIELD_DWELLS_S = (0.5, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0)
+YIELD_DWELLS_S = (0.5, 1.0, 2.0, 3.0, 4.5)
 
 
 @dataclass(frozen=True)
@@ -89,47 +93,61 @@ def resolve(start: BoundaryState, goal: BoundaryState, t_now_s: float, arrival_s
         base = plan_timed(start, goal, t_now_s, arrival_s, limits, vias, deadline=deadline, auto_via=False)
         if try_base and consider(base, "replan") is not None:
             return Resolution(base, "replan", tried, None)
-        # yield: same path, wait first (moving obstacles only)
-        for dwell in (YIELD_DWELLS_S if try_yield else ()):
-            p = plan_timed(start, goal, t_now_s, arrival_s, limits, vias, dwell_first_s=dwell, deadline=deadline,
-                           auto_via=False)
-            if consider(p, f"yield {dwell:.1f} s") is not None:
-                return Resolution(p, f"yield {dwell:.1f} s", tried, first)
-        # deviation points
-        cands: list[tuple[str, tuple[float, float]]] = list(extra_vias_xy)
+        if first is None and len(obstacles):
+            first = first_conflict(base, obstacles, t_now_s, min(t_now_s + horizon_s, base.arrival_s + 1.0), margin_m)
+        # deviation points: the given ones, then beside the predicted conflict
+        devs: list[list[tuple[str, tuple[float, float]]]] = [list(extra_vias_xy), []]
+        head_on = False
         c0 = first
         if c0 is not None:
             px, py = c0.robot_xy
             ox, oy = c0.obstacle_xy
-            dist = math.hypot(px - ox, py - oy)
-            need = dist - c0.gap_m + 0.15
+            need = math.hypot(px - ox, py - oy) - c0.gap_m + 0.15
             vx, vy = c0.obstacle_v
             sp = math.hypot(vx, vy)
-            x_b, y_b, yaw_b, _, _, _ = base.at(c0.t_s)
+            _, _, yaw_b, _, _, _ = base.at(c0.t_s)
             hx, hy = math.cos(float(yaw_b)), math.sin(float(yaw_b))
+            head_on = sp > 0.1 and (vx * hx + vy * hy) < -0.7 * sp  # 003: an oncoming obstacle is passed, not waited for
             dirs: list[tuple[str, float, float]] = []
-            if sp > 0.1:
+            if sp > 0.1 and not head_on:
                 dirs.append(("behind", -vx / sp, -vy / sp))
             lx, ly = -hy, hx  # left of the path
             side = 1.0 if (ox - px) * lx + (oy - py) * ly < 0 else -1.0  # away from the obstacle first
             dirs.append(("left" if side > 0 else "right", side * lx, side * ly))
             dirs.append(("right" if side > 0 else "left", -side * lx, -side * ly))
-            for k in (1.0, 1.5):
+            for k, bucket in ((1.0, 0), (1.6, 1)):
                 for name, ux, uy in dirs:
-                    cands.append((f"deviate {name}", (ox + k * need * ux, oy + k * need * uy)))
-        for label, xy in cands:
+                    devs[bucket].append((f"deviate {name}", (ox + k * need * ux, oy + k * need * uy)))
+        waits = YIELD_DWELLS_S if try_yield else ()
+        # order: small waits, first deviations, longer waits, wider deviations (oncoming: deviations first)
+        plan_order: list[tuple[str, object]] = []
+        if not head_on:
+            plan_order += [("yield", d) for d in waits[:2]]
+        plan_order += [("dev", d) for d in devs[0]]
+        if not head_on:
+            plan_order += [("yield", d) for d in waits[2:]]
+        plan_order += [("dev", d) for d in devs[1]]
+        if head_on:
+            plan_order += [("yield", d) for d in waits]
+        for kind, arg in plan_order:
+            if kind == "yield":
+                dwell = float(arg)  # type: ignore[arg-type]
+                p = plan_timed(start, goal, t_now_s, arrival_s, limits, vias, dwell_first_s=dwell, deadline=deadline,
+                               auto_via=False, path=base.path)
+                if consider(p, f"yield {dwell:.1f} s") is not None:
+                    return Resolution(p, f"yield {dwell:.1f} s", tried, first)
+                continue
+            label, xy = arg  # type: ignore[misc]
             d_start = math.hypot(xy[0] - start.x_m, xy[1] - start.y_m)
             d_goal = math.hypot(xy[0] - goal.x_m, xy[1] - goal.y_m)
             if d_start < 0.6 or d_goal < 0.4:
                 continue
             nxt = (vias[0].x_m, vias[0].y_m) if vias else (goal.x_m, goal.y_m)
             v = via_state((start.x_m, start.y_m), xy, nxt)
-            for dwell in ((0.0, 1.0) if try_yield else (0.0,)):
-                p = plan_timed(start, goal, t_now_s, arrival_s, limits, (v, *vias), dwell_first_s=dwell, deadline=deadline,
-                               auto_via=False, tags=(label,))
-                act = label if dwell == 0 else f"{label} + yield {dwell:.1f} s"
-                if consider(p, act) is not None:
-                    return Resolution(p, act, tried, first)
+            p = plan_timed(start, goal, t_now_s, arrival_s, limits, (v, *vias), deadline=deadline, auto_via=False,
+                           tags=(label,))
+            if consider(p, label) is not None:
+                return Resolution(p, label, tried, first)
     except DeadlineMissed:
         if late is None:
             raise

@@ -51,7 +51,8 @@ class TrackingParams:
     """``lookahead_s`` / ``lookahead_min_m``: RP distance (speed times lookahead_s, at least the
     minimum), m; ``arc_gain`` see the module docstring; ``k_s`` along-path error gain, 1/s;
     ``ahead_wait_m``: ahead of schedule by more than this, a sub-band speed becomes a wait, m;
-    ``stop_lag_s``: the speed controller's time constant used for the stopping distance, s."""
+    ``stop_lag_s``: the speed controller's time constant used for the stopping distance, s;
+    ``brake_m_s2``: the largest deceleration the drive gives (the lag's rate is capped there), m/s^2."""
 
     lookahead_s: float = 0.7
     lookahead_min_m: float = 0.35
@@ -60,6 +61,7 @@ class TrackingParams:
     ahead_wait_m: float = 0.10
     stop_lag_s: float = 0.25
     control_dt_s: float = 0.05
+    brake_m_s2: float = 2.0
 
 
 @dataclass
@@ -105,7 +107,14 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
     err = s_ref - s_rob  # > 0: behind schedule
     v = v_ref + p.k_s * err
     v = min(v, lim.v_max_m_s)
-    stop_d = abs(speed_m_s) * (p.stop_lag_s + 0.5 * p.control_dt_s)
+    # stopping distance under the speed controller: first-order lag tau, deceleration capped at a_brake
+    # (rate-limited while v / tau > a_brake, exponential below), plus half a control period of travel
+    v_now, tau, ab = abs(speed_m_s), p.stop_lag_s, p.brake_m_s2
+    if v_now > ab * tau:
+        stop_d = (v_now * v_now - (ab * tau) ** 2) / (2.0 * ab) + ab * tau * tau
+    else:
+        stop_d = v_now * tau
+    stop_d += 0.5 * v_now * p.control_dt_s
     if remaining <= stop_d or remaining <= 0.0:
         st.stopping = True
         return 0.0, steer

@@ -54,9 +54,10 @@ class TimedParams:
     safety_margin_m: float = 0.15  # Rsm of 003 eq. 4.29
     robot_width_m: float = 0.22  # w of 003 eq. 4.29 (RC car body)
     detect_range_m: float = 2.5  # returns blocking the plan within this (along the path) trigger a deviation
-    static_clear_m: float = 0.08  # clearance kept between the footprint and static returns
+    static_clear_m: float = 0.08  # clearance a new plan must keep between the footprint and static returns
+    static_trigger_m: float = 0.02  # the current plan is replanned when it comes closer than this (hysteresis)
     moving_margin_m: float = 0.12  # clearance kept to predicted moving obstacles / other robots
-    horizon_s: float = 8.0  # space-time look-ahead
+    horizon_s: float = 6.0  # space-time look-ahead
     delay_replan_m: float = 0.25  # schedule error that triggers a catch-up replan
     min_replan_interval_s: float = 0.4
     replan_budget_s: float = 0.002
@@ -66,6 +67,7 @@ class TimedParams:
     arc_gain: float = 2.0
     k_s: float = 0.8
     stop_lag_s: float = 0.25
+    speed_ratio_gain: float = 0.05  # per step, learning rate of the measured/commanded speed ratio
 
     def __post_init__(self) -> None:
         if not 0 < self.plan_steer_deg <= self.max_steer_deg < 90:
@@ -89,9 +91,10 @@ class TimedPlanner:
         p = self.params
         self.limits = TimedLimits.from_spec(self.spec, max_steer_rad=min(math.radians(p.max_steer_deg), self.spec.max_steer_rad),
                                             plan_steer_rad=min(math.radians(p.plan_steer_deg), self.spec.max_steer_rad),
-                                            accel_m_s2=min(p.accel_m_s2, self.spec.max_accel_m_s2))
+                                            accel_m_s2=min(p.accel_m_s2, self.spec.max_accel_m_s2),
+                                            stop_lag_s=p.stop_lag_s)
         self.track_params = TrackingParams(p.lookahead_s, p.lookahead_min_m, p.arc_gain, p.k_s, 0.10, p.stop_lag_s,
-                                           self.spec.control_dt_s)
+                                           self.spec.control_dt_s, self.spec.max_accel_m_s2)
         self.reset()
 
     # ---- lifecycle ----------------------------------------------------------------------------
@@ -102,6 +105,9 @@ class TimedPlanner:
         self._last_steer = 0.0
         self._last_replan_t = -math.inf
         self._budget_scale = 1.0
+        self._last_v_cmd = 0.0
+        self._prev_speed = 0.0
+        self.speed_ratio = 1.0  # measured / commanded speed, learnt while cruising (slip, worn motor, table error)
         self.replan_times_s: list[float] = []
         self.events: list[tuple[float, str]] = []
         self.status: dict[str, Any] = {"feasible": None, "reason": "no plan yet", "earliest_arrival_s": None,
@@ -242,12 +248,20 @@ class TimedPlanner:
         if not self.ts.stopping and t - self._last_replan_t >= p.min_replan_interval_s and self.plan.path.length_m - self.ts.s_m > 0.6:
             self._maybe_replan(obs, target, pts, movers)
         v, steer = track(self.plan, obs.pose, obs.speed_m_s, t, self.ts, self.track_params)
+        # learn how fast the car really goes for a command, and command through that ratio
+        if self._last_v_cmd >= self.limits.v_min_m_s and obs.speed_m_s > 0.2 and abs(obs.speed_m_s - self._prev_speed) < 0.01:
+            ratio = obs.speed_m_s / self._last_v_cmd
+            self.speed_ratio = min(1.4, max(0.6, self.speed_ratio + p.speed_ratio_gain * (ratio - self.speed_ratio)))
+        self._prev_speed = obs.speed_m_s
+        if v > 0.0 and not self.ts.stopping:
+            v = min(max(v / self.speed_ratio, self.limits.v_min_m_s), self.limits.v_max_m_s)
         # last line of defence: a return inside the footprint's way within the braking distance
         if len(pts) and v > 0:
             blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
             if blk is not None:
                 v = 0.0
         self._last_steer = steer
+        self._last_v_cmd = v
         return DriveCommand(v, 0.0, steer)
 
     def _maybe_replan(self, obs: Observation, target: Goal, pts: FloatArray, movers: list[SpaceTimeObstacle]) -> None:
@@ -256,7 +270,7 @@ class TimedPlanner:
         t = obs.t_s
         why = None
         extra: list[tuple[str, tuple[float, float]]] = []
-        blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + p.detect_range_m, p.static_clear_m) if len(pts) else None
+        blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + p.detect_range_m, p.static_trigger_m) if len(pts) else None
         if blk is not None:
             why = "static"
             extra = self._deviation_points(obs, pts, blk[1])
@@ -288,12 +302,18 @@ class TimedPlanner:
             new, action = None, f"{why}: budget of {budget * 1e3:.1f} ms exhausted"
             self.status["deadline_misses"] += 1
             self._budget_scale = min(self._budget_scale * 2.0, 16.0)  # give the next try more room
+        if new is None and why == "moving":
+            c = first_conflict(self.plan, movers, t, t + 2.0, 0.0)
+            if c is not None:  # nothing clear and contact within 2 s: stop and wait, try again next time
+                new = plan_timed(start, goal, t, arrival, self.limits, vias, dwell_first_s=1.0, auto_via=False)
+                action += "; stop and wait"
         dt = time.perf_counter() - t0
         self.replan_times_s.append(dt)
         self._last_replan_t = t
         self.events.append((t, action))
         if new is not None:
-            self._budget_scale = 1.0
+            if not action.endswith("stop and wait"):
+                self._budget_scale = 1.0
             self.plan = new
             self.ts = TrackState(s_m=0.0)
             self.status["replans"] += 1

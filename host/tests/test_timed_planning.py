@@ -1,0 +1,195 @@
+"""Time-critical planning (issue 9, ref 003): polynomials, limits, tracking law, deviation point,
+catch-up, moving obstacles in space-time, several robots, and the planner in the simulator."""
+
+import math
+
+import numpy as np
+import pytest
+
+from agnav_host.planning.base import DeadlineMissed
+from agnav_host.planning.registry import make_planner
+from agnav_host.planning.timed import (BoundaryState, MovingObstacle, RobotTask, TimedLimits, TimedPlanner, arc_radius_m,
+                                       coordinate, deviation_point, first_conflict, hermite5_coeffs, plan_timed,
+                                       poly003_coeffs, poly_eval, resolve, steer_from_arc, via_state)
+from agnav_host.sim.runner import run_scenario
+from agnav_host.sim.scenario import load_scenario
+
+L = 0.174
+
+
+def _derivs(cx, cy, t):
+    return [float(poly_eval(c, t, k)) for c in (cx, cy) for k in (0, 1, 2)]
+
+
+@pytest.mark.parametrize("form", ["003", "hermite5"])
+def test_polynomials_meet_every_boundary_condition(form):
+    s = BoundaryState(1.0, -2.0, math.radians(30), math.radians(8), 0.7)
+    g = BoundaryState(9.0, 3.0, math.radians(-20), math.radians(-5), 0.5)
+    T = 12.0
+    cx, cy = (poly003_coeffs if form == "003" else hermite5_coeffs)(s, g, T, L)
+    assert len(cx) == (4 if form == "003" else 6) and len(cy) == 6
+    for st, t in ((s, 0.0), (g, T)):
+        x, xd, xdd, y, yd, ydd = _derivs(cx, cy, t)
+        assert (x, y) == pytest.approx((st.x_m, st.y_m), abs=1e-9)
+        assert (xd, yd) == pytest.approx((st.speed_m_s * math.cos(st.yaw_rad), st.speed_m_s * math.sin(st.yaw_rad)), abs=1e-9)
+        kappa = (xd * ydd - yd * xdd) / math.hypot(xd, yd) ** 3
+        assert math.atan(L * kappa) == pytest.approx(st.steer_rad, abs=1e-9), "steering at the end"
+
+
+def test_003_form_starts_from_rest_along_the_heading():
+    # v = 0 at both ends (003 tables): the direction of travel comes from the accelerations
+    s = BoundaryState(0.0, 0.0, math.radians(45))
+    g = BoundaryState(100.0, 100.0, math.radians(45))
+    cx, cy = poly003_coeffs(s, g, 60.0, L)
+    x, xd, xdd, y, yd, ydd = _derivs(cx, cy, 0.0)
+    assert xd == yd == 0.0
+    assert math.atan2(ydd, xdd) == pytest.approx(math.radians(45))
+    with pytest.raises(ValueError, match="90 deg"):
+        poly003_coeffs(BoundaryState(0, 0, math.radians(90)), g, 60.0, L)
+
+
+def test_plan_respects_steering_speed_band_and_acceleration():
+    lim = TimedLimits()
+    p = plan_timed(BoundaryState(0, 0, 0), BoundaryState(8.0, 4.0, math.radians(60)), 0.0, 18.0, lim)
+    assert p.feasible, p.reason
+    assert p.arrival_s == pytest.approx(18.0, abs=1e-6)
+    assert p.max_steering_rad <= lim.plan_steer_rad <= lim.max_steer_rad == pytest.approx(math.radians(20))
+    prof = p.profile
+    assert prof.max_speed_m_s <= lim.v_max_m_s + 1e-9
+    for kind, v, a in zip(prof.kind, prof.v_m_s, prof.a_m_s2):
+        if kind == "cruise":
+            assert v >= lim.v_min_m_s - 1e-9, "cruising inside the dead band"
+        if kind == "ramp":
+            assert abs(a) <= lim.accel_m_s2 + 1e-9
+    # slow request: waits, then drives in the band (003's 400 cm in 20 s)
+    slow = plan_timed(BoundaryState(0, 2, 0), BoundaryState(4, 2, 0), 0.0, 20.0, lim)
+    assert slow.feasible and slow.profile.dwell_s > 5.0
+    assert min(v for k, v in zip(slow.profile.kind, slow.profile.v_m_s) if k == "cruise") >= lim.v_min_m_s
+
+
+def test_infeasible_time_gives_reason_and_earliest_arrival():
+    # ref 003 case 1 in metres: 141 m in 60 s needs 2.36 m/s > the car's 2.0 m/s
+    p = plan_timed(BoundaryState(0, 0, math.radians(45)), BoundaryState(100, 100, math.radians(45)), 0.0, 60.0)
+    assert not p.feasible
+    assert "too early" in p.reason and "2.36 m/s" in p.reason
+    assert p.earliest_arrival_s == pytest.approx(73.0, abs=0.3)
+    assert p.arrival_s == pytest.approx(p.earliest_arrival_s)  # timed for the earliest, still drivable
+    again = plan_timed(BoundaryState(0, 0, math.radians(45)), BoundaryState(100, 100, math.radians(45)), 0.0, p.earliest_arrival_s + 0.01)
+    assert again.feasible
+    # a turn no timing can fix
+    u = plan_timed(BoundaryState(0, 0, 0), BoundaryState(0.5, 0.5, math.pi), 0.0, 20.0)
+    assert not u.feasible and "steering" in u.reason and u.earliest_arrival_s is None
+
+
+def test_auto_via_makes_a_goal_behind_feasible():
+    p = plan_timed(BoundaryState(0, 0, 0), BoundaryState(-3, 5, math.radians(90)), 0.0, 20.0)
+    assert p.feasible and len(p.states) == 3
+    assert p.max_steering_rad <= TimedLimits().plan_steer_rad
+
+
+def test_deadline_raises():
+    with pytest.raises(DeadlineMissed):
+        plan_timed(BoundaryState(0, 0, 0), BoundaryState(5, 0, 0), 0.0, 10.0, deadline=0.0)
+
+
+def test_tracking_law_on_a_known_arc():
+    R = 1.5
+    for beta in (0.1, 0.4, -0.7):  # heading change along the arc
+        d = 2 * R * math.sin(abs(beta) / 2)  # chord
+        assert arc_radius_m(d, beta) == pytest.approx(math.copysign(R, beta))
+        assert steer_from_arc(d, beta, L, math.radians(20)) == pytest.approx(math.atan(L / math.copysign(R, beta)))
+    # the chord-tangent angle is half the heading change: with arc_gain 2 the law is exact pure pursuit
+    alpha = 0.2
+    d = 2 * R * math.sin(alpha)
+    assert steer_from_arc(d, 2 * alpha, L, 1.0) == pytest.approx(math.atan(L / R))
+    assert steer_from_arc(0.1, 1.0, L, math.radians(20)) == pytest.approx(math.radians(20)), "clipped"
+    assert steer_from_arc(1.0, 0.0, L, 0.3) == 0.0
+
+
+def test_deviation_point_formula():
+    D, th, x, y = deviation_point(1.0, 2.0, 2.0, 0.0, 0.3, 0.2, 0.2, side=+1)
+    assert D == pytest.approx(math.sqrt(0.4**2 + 2.3**2))
+    assert th == pytest.approx(math.atan(0.4 / 2.3))
+    assert (x, y) == pytest.approx((1.0 + 2.3, 2.0 + 0.4))  # abreast of the obstacle centre, Rsm + w aside
+    _, th_r, xr, yr = deviation_point(0.0, 0.0, 2.0, math.pi / 2, 0.3, 0.2, 0.2, side=-1)
+    assert (xr, yr) == pytest.approx((0.4, 2.3)) and th_r < math.pi / 2
+
+
+def test_catch_up_replan_keeps_the_arrival_time():
+    lim = TimedLimits()
+    p = plan_timed(BoundaryState(0, 0, 0), BoundaryState(10, 2, 0), 0.0, 20.0, lim)
+    x, y, yaw, k, v, s = p.at(8.0)
+    # the robot lost 1.5 m (a stop by the safety layer) and stands still
+    xs, ys, yaws, _ = p.path.sample(float(s) - 1.5)
+    late = plan_timed(BoundaryState(float(xs), float(ys), float(yaws), 0.0, 0.0), p.goal, 8.0, 20.0, lim)
+    assert late.feasible and late.arrival_s == pytest.approx(20.0)
+    assert late.profile.cruise_speed_m_s > p.profile.cruise_speed_m_s
+    # through a deviation point: longer path, same arrival
+    via = via_state((float(x), float(y)), (6.0, 1.5), (10.0, 2.0))
+    dev = plan_timed(BoundaryState(float(x), float(y), float(yaw), 0.0, float(v)), p.goal, 8.0, 20.0, lim, (via,))
+    assert dev.feasible and dev.arrival_s == pytest.approx(20.0) and dev.path.length_m > 10.0 - float(s)
+    # too much lost: not feasible any more, the new earliest arrival is reported
+    gone = plan_timed(BoundaryState(0, 0, 0), p.goal, 17.0, 20.0, lim)
+    assert not gone.feasible and gone.earliest_arrival_s is not None and gone.earliest_arrival_s > 20.0
+
+
+def test_moving_obstacle_is_avoided_in_space_time_keeping_the_arrival():
+    lim = TimedLimits()
+    start, goal = BoundaryState(0, 0, 0, 0.0, 0.0), BoundaryState(10, 0, 0)
+    p = plan_timed(start, goal, 0.0, 15.0, lim)
+    x, y, *_ = p.at(7.0)
+    # a walker crossing the path so that it is at the robot's position at t = 7 s
+    walker = MovingObstacle(float(x), float(y) - 3.5, 0.0, 0.5, 0.25, speed_sigma_m_s=0.1, stamp_s=0.0)
+    c = first_conflict(p, [walker], 0.0, 15.0, 0.1)
+    assert c is not None and 5.0 < c.t_s < 8.0
+    # the 003 two-step look-ahead (0.1 s steps) sees nothing at t = 0: the conflict is 7 s away
+    assert first_conflict(p, [walker], 0.0, 0.2, 0.1) is None
+    res = resolve(start, goal, 0.0, 15.0, lim, (), [walker], None, horizon_s=15.0)
+    assert res.plan is not None and res.plan.feasible, res.action
+    assert res.plan.arrival_s == pytest.approx(15.0)
+    assert first_conflict(res.plan, [walker], 0.0, 15.0, 0.1) is None
+    # the uncertainty grows with time (capped) and widens the predicted disc
+    _, r = walker.predict(np.array([0.0, 2.0, 100.0]))
+    assert r[0] < r[1] < r[2] <= walker.radius_m + 2 * walker.pos_sigma_m + walker.max_growth_m + 1e-9
+
+
+def test_multi_robot_conflicts_are_resolved_keeping_arrival_times():
+    lim = TimedLimits()
+    tasks = [RobotTask("R1", BoundaryState(0, 0, math.radians(45)), BoundaryState(10, 10, math.radians(45)), 25.0, 0.0, lim),
+             RobotTask("R2", BoundaryState(10, 0, math.radians(135)), BoundaryState(0, 10, math.radians(135)), 25.0, 0.0, lim),
+             RobotTask("R3", BoundaryState(0, 5, 0), BoundaryState(10, 5, 0), 20.0, 0.0, lim)]
+    co = coordinate(tasks, margin_m=0.15)
+    assert len(co.before) >= 1, "the direct plans cross at (5, 5)"
+    assert co.after == []
+    assert all(co.on_time.values()), co.actions
+    for t in tasks:
+        assert co.plans[t.name].arrival_s == pytest.approx(t.arrival_s)
+
+
+def test_registry_builds_the_timed_planner():
+    p = make_planner("timed")
+    assert isinstance(p, TimedPlanner) and p.name == "timed"
+
+
+@pytest.mark.parametrize("name", ["timed_static", "timed_delay"])
+def test_timed_planner_in_the_simulator(name):
+    """Unknown static obstacles (laser) / a 15 % slow car with the dead band: arrive within 5 cm and
+    0.2 s of the set time."""
+    r = run_scenario(load_scenario(name), "timed", seed=1)
+    m = r.metrics
+    assert r.end_reason == "arrived", r.end_reason
+    assert m.final_position_error_m <= 0.05
+    assert abs(m.arrival_time_error_s) <= 0.2, m.arrival_time_error_s
+    assert m.final_heading_error_deg <= 2.0
+    assert m.min_clearance_m > 0.0
+
+
+def test_perception_tracks_are_adapted():
+    from agnav_host.perception._tracking import Track
+
+    tr = Track(id=3, x_m=2.0, y_m=1.0, vx_m_s=0.5, vy_m_s=-0.2, radius_m=0.3, speed_sigma_m_s=0.12,
+               covariance=((0.0025, 0, 0, 0), (0, 0.0016, 0, 0), (0, 0, 0.01, 0), (0, 0, 0, 0.01)), age_s=1.0, hits=5)
+    m = MovingObstacle.from_any(tr, stamp_s=4.0)
+    assert (m.x_m, m.y_m, m.vx_m_s, m.vy_m_s, m.radius_m, m.speed_sigma_m_s) == (2.0, 1.0, 0.5, -0.2, 0.3, 0.12)
+    assert m.pos_sigma_m == pytest.approx(0.05) and m.stamp_s == 4.0
+    assert MovingObstacle.from_any((1, 2, 0, 0, 0.25)).speed_sigma_m_s == 0.1
