@@ -34,15 +34,19 @@ def test_him_gap_selection_mirrors():
     assert p.subgoal_world is not None and p.subgoal_world[1] > 1.0 + SPEC.radius_m
 
 
-def test_him_narrow_gap_is_not_an_escape_point():
-    """Two walls with a 0.4 m slot (narrower than the 0.45 m robot plus margins) straight ahead: no
-    escape point in the slot."""
-    scan = scan_from_segments([(2.0, -3.0, 2.0, -0.2), (2.0, 0.2, 2.0, 3.0)])
+def test_him_narrow_gap_is_not_chosen():
+    """Two walls with a 0.4 m slot (narrower than the 0.45 m robot) straight ahead, goal behind it:
+    the slot's edges yield candidates, but none survives the clearance check; the robot heads for an
+    outer end instead."""
+    scan = scan_from_segments([(2.0, -2.0, 2.0, -0.2), (2.0, 0.2, 2.0, 3.0)])
     view = local_view(obs_with(scan, (4.0, 0.0)), SPEC)
     ang, rng = polar_grid(view, math.radians(2.0), 6.0)
     pts = escape_points(ang, rng, SPEC.radius_m, 0.15, 6.0)
-    in_slot = (np.abs(pts[:, 1]) < 0.2) & (pts[:, 0] > 1.5)
-    assert not in_slot.any()
+    assert len(pts) >= 2
+    p = HimPlanner(SPEC)
+    p.step(obs_with(scan, (4.0, 0.0)))
+    assert p.subgoal_world is not None
+    assert p.subgoal_world[1] < -2.0, f"chose {p.subgoal_world}"
 
 
 def test_him_direct_path_goes_straight():
@@ -75,7 +79,7 @@ def test_vfh_wide_valley_steers_inside_its_border():
     free = np.zeros(36, dtype=bool)
     free[18:30] = True  # 0..120 deg free; goal at -40 deg is blocked
     d = choose_direction(find_valleys(free), 36, math.radians(-40.0), 0.0, p)
-    assert d == pytest.approx(math.radians(20.0))  # s_max / 2 sectors inside the near border
+    assert d == pytest.approx(math.radians(25.0))  # s_max / 2 sectors inside the near border (centre 5 deg)
 
 
 def test_vfh_histogram_sees_a_wall_ahead_only():

@@ -59,7 +59,9 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)
     wall = time.perf_counter() - t0
-    cmd = "agnav " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("agnav") else "agnav bench planners"
+    cmd = f"agnav bench planners --out {ns.out}" + (f" --jobs {ns.jobs}" if ns.jobs else "") + \
+        (f" --scenarios {ns.scenarios}" if ns.scenarios else "") + (f" --planners {ns.planners}" if ns.planners else "") + \
+        (f" --seeds {ns.seeds}" if ns.seeds is not None else "")
     paths = write_report(results, ns.out, cmd, wall, plots=not ns.no_plot)
     print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {ns.out}")
     return 0

@@ -44,7 +44,7 @@ class PathFollowerParams:
     kw: float = 3.0
     v_max_m_s: float = 4.0
     a_max_m_s2: float = 1.0
-    lookahead_m: float = 0.35
+    lookahead_m: float = 0.6
     ds_m: float = 0.05
     end_tolerance_m: float = 0.05
 
@@ -143,7 +143,7 @@ class PathFollower:
 @dataclass(frozen=True)
 class FollowPathParams:
     follower: PathFollowerParams = PathFollowerParams()
-    inflate_margin_m: float = 0.15
+    inflate_margin_m: float = 0.25
     grid_size_m: float = 60.0
     grid_res_m: float = 0.1
     replan_s: float = 1.0

@@ -161,8 +161,8 @@ class HimPlanner:
         w = p.yaw_gain * bearing
         if abs(bearing) > p.turn_in_place_rad:
             return drive_command(spec, 0.0, w)
-        ahead = float(free_distances_m(pts, np.array([bearing]), r + 0.02, 1.5)[0])
-        v = spec.max_speed_m_s * math.cos(bearing) ** 2 * min(1.0, ahead / 1.0 + 0.2, d_goal / p.slow_radius_m + 0.2)
+        ahead, nose = (float(x) for x in free_distances_m(view.xy, np.array([bearing, 0.0]), r + 0.02, 1.5))
+        v = spec.max_speed_m_s * math.cos(bearing) ** 2 * min(1.0, ahead / 1.0 + 0.2, d_goal / p.slow_radius_m + 0.2, nose / 0.3 + 0.1)
         if self.subgoal_world is not None:
             v = min(v, spec.max_speed_m_s * max(0.4, min(1.0, dist / 0.8)))
         return drive_command(spec, v, w)

@@ -23,7 +23,8 @@ the simulator nothing feeds them:
   cone is closer than ``avoid_rear_clear``) -> wait ``avoid_wait_s`` -> release.
 
 The result is a (steer, speed) pair as the firmware's; a differential drive turns it into a yaw rate
-as firmware/lib/drive does: ``w = v tan(steer) / track`` (so a stopped robot does not turn).
+as firmware/lib/drive does: ``w = v tan(steer) / track``, and below ``drive_spin_below`` a turn on
+the spot with wheel speeds -/+ ``steer / 45 deg * drive_spin``.
 """
 
 from __future__ import annotations
@@ -89,10 +90,10 @@ class SubsumptionParams:
     goal_tol_m: float = 0.1
     follow_wall: bool = True
     avoid: bool = True
-    # Host-only deviation (0 = exact mirror): a differential drive given steer with zero speed (the
-    # follow-wall layer at e >= Imax) does not turn under w = v tan(steer) / track; with this > 0 it
-    # turns on the spot at this yaw rate instead.
-    spin_rad_s: float = 0.6
+    # firmware/lib/drive (differential): below drive_spin_below the wheels get -/+ steer / 45 deg *
+    # drive_spin instead of the arc w = v tan(steer) / track, so the robot turns on the spot
+    drive_spin_m_s: float = 0.3
+    drive_spin_below_m_s: float = 0.1
 
     def __post_init__(self) -> None:
         if not (self.wall_imin_steps > self.wall_imax_steps > 0 and self.wall_speed_m_s > 0 and self.wall_dt_s > 0):
@@ -250,9 +251,11 @@ class SubsumptionPlanner:
         self.layer, self.reason = layer, reason
         if spec.kinematics == "ackermann":
             return DriveCommand(speed, 0.0, max(-spec.max_steer_rad, min(spec.max_steer_rad, steer)))
-        if speed == 0.0 and steer != 0.0 and p.spin_rad_s > 0.0 and layer == Layer.FOLLOW_WALL:
-            return DriveCommand(0.0, math.copysign(p.spin_rad_s, steer))
-        return DriveCommand(speed, speed * math.tan(steer) / spec.track_m)
+        if abs(speed) < p.drive_spin_below_m_s:  # drive.c: spin on the spot
+            half = steer / math.radians(45.0) * p.drive_spin_m_s
+        else:
+            half = 0.5 * speed * math.tan(steer)
+        return DriveCommand(speed, 2.0 * half / spec.track_m)
 
 
 def norm_angle_arr(a: np.ndarray) -> np.ndarray:
