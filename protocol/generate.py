@@ -86,7 +86,14 @@ def write_c_wrapper(out: Path) -> Path:
         "/* Parse only what the firmware handles: the full CRC table would take 2 KB of RAM. */\n"
         f"#define MAVLINK_MESSAGE_CRCS {{{', '.join(subset)}}}\n"
         "#define MAVLINK_NO_SIGN_PACKET\n#define MAVLINK_NO_SIGNATURE_CHECK\n"
-        "#endif\n#include \"agnav/mavlink.h\"\n#endif\n"
+        "#endif\n"
+        "/* One channel status (sequence counters) for the whole program: MAVLink's default is a\n"
+        " * static array per source file, which gives each file its own tx sequence. Weak, so every\n"
+        " * file may define it and the linker keeps one. */\n"
+        "#define MAVLINK_EXTERNAL_RX_STATUS\n"
+        "#include \"mavlink_types.h\"\n"
+        "__attribute__((weak)) mavlink_status_t m_mavlink_status[MAVLINK_COMM_NUM_BUFFERS];\n"
+        "#include \"agnav/mavlink.h\"\n#endif\n"
     )
     if not wrapper.exists() or wrapper.read_text(encoding="utf-8") != content:
         wrapper.write_text(content, encoding="utf-8")

@@ -253,14 +253,31 @@ static void task_control(void)
     s_out_ms = now_ms;
 }
 
-/* The active layer and its reason, every control tick (runs right after task_control). */
+/* The active layer and its reason, checked every control tick (runs right after task_control):
+ * sent in the tick a layer, reason or failsafe flag changes, and at STATUS_KEEPALIVE_MS
+ * otherwise. Sending all 50 per second would take 1.2 kB/s of the ~1.5 kB/s a 57600-baud radio
+ * has for telemetry; this way the host still learns every change in the tick it happens. */
+#define STATUS_KEEPALIVE_MS 200u
+static behaviour_out_t s_sent;
+static uint32_t s_sent_ms;
+
 static void task_telemetry_50hz(void)
 {
+    bool changed = s_out.layer != s_sent.layer || s_out.reason != s_sent.reason ||
+                   s_out.failsafe_flags != s_sent.failsafe_flags;
+    if (!changed && (uint32_t)(s_out_ms - s_sent_ms) < STATUS_KEEPALIVE_MS) {
+        return;
+    }
     mavlink_message_t msg;
     mavlink_msg_agnav_behaviour_status_pack(link_sysid(), link_compid(), &msg, s_out_ms, s_out.layer, s_out.reason,
                                             s_out.failsafe_flags, s_out.steer_cdeg, s_out.speed_mm_s);
-    send(&msg);
+    if (link_send(&msg)) {
+        s_sent = s_out;
+        s_sent_ms = s_out_ms;
+    }
 }
+
+static void send_encoder_status(uint32_t now_ms);
 
 static void task_telemetry_10hz(void)
 {
@@ -273,6 +290,23 @@ static void task_telemetry_10hz(void)
                                     (int16_t)pose.yaw_rate_cdeg_s);
     send(&msg);
 
+    /* Encoders at 2 Hz (odometry above already carries the motion at 10 Hz). */
+    static uint8_t s_enc_div;
+    if (++s_enc_div >= 5u) {
+        s_enc_div = 0u;
+        send_encoder_status(now_ms);
+    }
+
+    if (s_ring != 0 && s_in.sonar.seq != 0u) {
+        mavlink_msg_agnav_sonar_ring_pack(link_sysid(), link_compid(), &msg, s_frame_ms, s_in.sonar.ranges_mm,
+                                          s_in.sonar.status, s_in.sonar.count, (uint16_t)s_in.sonar.seq);
+        send(&msg);
+    }
+}
+
+static void send_encoder_status(uint32_t now_ms)
+{
+    mavlink_message_t msg;
     int32_t count[4] = {0, 0, 0, 0};
     int16_t speed[4] = {0, 0, 0, 0};
     uint16_t errors[4] = {0, 0, 0, 0};
@@ -287,12 +321,6 @@ static void task_telemetry_10hz(void)
     }
     mavlink_msg_agnav_encoder_status_pack(link_sysid(), link_compid(), &msg, now_ms, count, speed, errors, p_enc_count);
     send(&msg);
-
-    if (s_ring != 0 && s_in.sonar.seq != 0u) {
-        mavlink_msg_agnav_sonar_ring_pack(link_sysid(), link_compid(), &msg, s_frame_ms, s_in.sonar.ranges_mm,
-                                          s_in.sonar.status, s_in.sonar.count, (uint16_t)s_in.sonar.seq);
-        send(&msg);
-    }
 }
 
 #define TASK_COUNT 6u

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..calib import CalibTable
-from ..link.calib_wire import MAX_SIDE_POINTS, TABLE_STEER, WireTable, _simplify, validate
+from ..link.calib_wire import MAX_SIDE_POINTS, TABLE_STEER, WireTable, _simplify, round_trips, validate
 
 __all__ = ["CalibFitError", "FitResult", "isotonic_increasing", "steer_from_motion", "yaw_rate_from_wheels",
            "steer_from_diameter", "fit_table", "pool_samples", "synthetic_sweep"]
@@ -218,7 +218,16 @@ def fit_table(pwm: np.ndarray, value: np.ndarray, table_id: int, *, dead_band: f
                             "sweep further or check the direction")
     if both and not neg:
         raise CalibFitError("only one side of neutral moves: steering needs a sweep to both sides")
-    table = WireTable(table_id, n, tuple(pos[0][1]), tuple(neg[0][1]) if neg else ())
+    pos_pts = list(pos[0][1])
+    neg_pts = list(neg[0][1]) if neg else []
+    # A zero point at neutral on one side and a zero point off neutral on the other do not survive
+    # the wire (the robot gives the neutral point to the positive side first): start both at neutral.
+    for a, b in ((pos_pts, neg_pts), (neg_pts, pos_pts)):
+        if a and b and a[0] == (n, 0) and b[0][1] == 0 and b[0][0] != n:
+            b[0] = (n, 0)
+    table = WireTable(table_id, n, tuple(pos_pts), tuple(neg_pts))
+    if not round_trips(table):
+        raise CalibFitError(f"fitted table is ambiguous on the wire: {table.describe()}")
     code, why = validate(table)
     if code != 0:
         raise CalibFitError(f"fitted table would be refused by the firmware: {why}")

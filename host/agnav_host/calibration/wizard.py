@@ -224,7 +224,7 @@ class Wizard:
         return StepResult(pwm, values, dur, dist, ok, note)
 
     def _pause_between_steps(self) -> None:
-        end = time.monotonic() + 0.3
+        end = time.monotonic() + self.cfg.pause_s
         while time.monotonic() < end:
             self.robot.stop()
             self.sleep(0.1)

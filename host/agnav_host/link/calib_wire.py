@@ -26,7 +26,7 @@ from typing import Any
 from ..calib import CalibTable
 
 __all__ = ["WireTable", "TABLE_STEER", "TABLE_SPEED", "TABLE_SPEED_RIGHT", "TABLE_NAMES", "RESULT_NAMES",
-           "validate", "from_message", "from_calib_table", "MAX_SIDE_POINTS"]
+           "validate", "from_message", "from_calib_table", "MAX_SIDE_POINTS", "round_trips", "split_points"]
 
 TABLE_STEER, TABLE_SPEED, TABLE_SPEED_RIGHT = 0, 1, 2
 TABLE_NAMES = {TABLE_STEER: "steer", TABLE_SPEED: "speed", TABLE_SPEED_RIGHT: "speed_right"}
@@ -190,8 +190,19 @@ def validate(t: WireTable) -> tuple[int, str]:
 def from_message(m: Any) -> WireTable:
     """AGNAV_CALIB_TABLE -> WireTable, split into sides as ``link_calib_from_msg()`` does."""
     n = min(int(m.n_points), MAX_WIRE_POINTS)
-    neutral = int(m.neutral_pwm)
-    pts = [(int(m.pwm[i]), int(m.value[i])) for i in range(n)]
+    return split_points(int(m.table_id), int(m.neutral_pwm), [(int(m.pwm[i]), int(m.value[i])) for i in range(n)])
+
+
+def round_trips(t: WireTable) -> bool:
+    """True if the robot rebuilds exactly ``t`` from its wire form (zero points can be ambiguous)."""
+    try:
+        return split_points(t.table_id, t.neutral_pwm, t.points()) == t
+    except ValueError:
+        return False
+
+
+def split_points(table_id: int, neutral: int, pts: list[tuple[int, int]]) -> WireTable:
+    """Wire points (sorted by pwm) -> sides, with the firmware's rules for zero-valued points."""
     pos_above = neg_above = 0
     for p, v in pts:
         above = 1 if p > neutral else -1
@@ -214,7 +225,7 @@ def from_message(m: Any) -> WireTable:
         side.append((p, v))
     pos.sort(key=lambda q: abs(q[0] - neutral))
     neg.sort(key=lambda q: abs(q[0] - neutral))
-    return WireTable(int(m.table_id), neutral, tuple(pos), tuple(neg))
+    return WireTable(table_id, neutral, tuple(pos), tuple(neg))
 
 
 def from_calib_table(t: CalibTable, table_id: int) -> WireTable:

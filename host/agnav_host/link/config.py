@@ -63,6 +63,7 @@ class CalibrationConfig:
     settle_s: float = 1.0              # ignored start of every step, s
     hold_s: float = 3.0                # measured part of every step, s
     max_step_s: float = 6.0            # hard limit on one step, s
+    pause_s: float = 1.0               # standstill (zero setpoints) between steps, s
     max_distance_m: float = 4.0        # a step ends early after this distance, m
     wheelbase_m: float = 0.174         # L for phi = atan(L * yaw_rate / v), m
     track_m: float = 0.191             # rear track for yaw rate from two wheel encoders, m

@@ -324,6 +324,9 @@ class Endpoint:
     def _run(self) -> None:
         while not self._stop.is_set():
             now = time.monotonic()
+            if now - self._last_budget_check >= 0.5:  # rates and silence, transport open or not
+                self._last_budget_check = now
+                self._check_rates(now)
             if self._conn is None:
                 if now < self._next_open:
                     self._stop.wait(min(0.05, self._next_open - now))
@@ -357,9 +360,6 @@ class Endpoint:
             self._last_hb = now
             self.send(self.mav.heartbeat_encode(self.d.MAV_TYPE_GCS, self.d.MAV_AUTOPILOT_INVALID, 0, 0,
                                                 self.d.MAV_STATE_ACTIVE))
-        if now - self._last_budget_check >= 0.5:
-            self._last_budget_check = now
-            self._check_rates(now)
         conn = self._conn
         if conn is None:
             return

@@ -21,7 +21,7 @@ import time
 from typing import Any
 
 from ..types import DriveCommand
-from .calib_wire import RESULT_NAMES, TABLE_NAMES, WireTable, from_message, validate
+from .calib_wire import RESULT_NAMES, TABLE_NAMES, WireTable, from_message, round_trips, validate
 from .endpoint import Endpoint, LinkTimeout
 
 __all__ = ["AgnavRobot", "CommandFailed", "MAV_CMD_AGNAV_ESTOP", "MAV_CMD_AGNAV_SET_BEHAVIOURS",
@@ -213,6 +213,8 @@ class AgnavRobot:
             code, why = validate(table)
             if code != 0:
                 raise CommandFailed(f"calib write {TABLE_NAMES.get(table.table_id)}: {RESULT_NAMES[code]} ({why})")
+            if not round_trips(table):
+                raise CommandFailed(f"calib write: the robot would split this table differently: {table.describe()}")
         return self._calib_ack(lambda: table.to_message(self.mav, *self._tgt()), table.table_id,
                                f"calib write {TABLE_NAMES.get(table.table_id, table.table_id)}")
 

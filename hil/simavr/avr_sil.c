@@ -1,0 +1,891 @@
+/*
+ * AgNav AVR software-in-the-loop: the C API of hil/sil/sil_api.h (same names, same
+ * semantics, so agnav_host.sil.binding loads either library) backed by libsimavr running
+ * the REAL ATmega2560 ELF (.pio/build/megaatmega2560/firmware.elf) at 16 MHz.
+ * Built into build/sil/libagnav_avr_sil.so by agnav_host.sil.avr_build.
+ *
+ * ELF: sil_avr_set_elf(path) before sil_init(), else $AGNAV_AVR_ELF, else
+ * .pio/build/megaatmega2560/firmware.elf relative to the working directory.
+ *
+ * Time. sil_time_us() = CPU cycles since power-on / 16. sil_step_to() runs the core
+ * instruction by instruction to the first instruction boundary at or after the target
+ * cycle (so the time reached is the target, the core may be up to one instruction, < 1 us,
+ * past it). The firmware's own clock is Timer5 (4 us ticks): that, not this API, limits
+ * its time resolution. sil_set_tick_us() is accepted and ignored: the real main loop runs
+ * free; sil_loop_passes() is 0 (the loop is inlined into main()).
+ *
+ * Timed events (encoder and echo edges) sit in a min-heap on (t, queueing order); the core
+ * stops at each event's cycle and the edge is applied to the pins, where the real
+ * interrupt hardware (simavr's PCINT0 / INT0..3, and the PCINT2 model below) takes over.
+ *
+ * Sonar. A trigger is the falling edge of a trigger pin (PA0..7 sonars 0..7, PC0..3 8..11),
+ * logged with its own time. With stop_on_trigger, sil_step_to() returns
+ * SIL_AVR_TRIGGER_SETTLE_US after the last trigger of a burst (a ring group fires its
+ * sensors one after the other, 10 us pulse each), well before any echo can rise.
+ *
+ * UART0 is the link. Bytes written by sil_uart_write() wait in a queue and are fed to
+ * simavr's receiver while it signals XON (input FIFO not full); simavr then paces them at
+ * the programmed baud rate (UBRR0: 58.8 kbit/s, 170 us per byte). Bytes the firmware puts in
+ * UDR0 are captured in a ring for sil_uart_read().
+ *
+ * Outputs are read back from the timer registers: servo us = OCR3A / OCR3B / 2 (Timer3 at
+ * 2 ticks per us), H-bridge duty = OCR4A / OCR4B, direction = PH5 / PH6. Watchdog kicks are
+ * the WDR instructions executed, the timeout is WDTCSR's prescaler.
+ *
+ * Parameters. The firmware's parameter table (PARAMS in main.c, in flash: name[17],
+ * type int16, value pointer uint16, min int32, max int32 = 29 bytes a row) is found by its
+ * ELF symbol; sil_param_get/set read and write the modules' variables in the AVR's RAM
+ * (range-checked like params_set()); sil_param_save() writes params.c's EEPROM record
+ * {magic 0xA61D, count, int32 values, CRC-16/CCITT-FALSE} at PARAMS_EEPROM_ADDR, which the
+ * firmware loads at its next boot. sil_reboot() keeps the EEPROM and powers on a new core.
+ */
+#include "sil_api.h"
+
+#include <simavr/avr_eeprom.h>
+#include <simavr/avr_extint.h>
+#include <simavr/avr_ioport.h>
+#include <simavr/avr_uart.h>
+#include <simavr/sim_avr.h>
+#include <simavr/sim_cycle_timers.h>
+#include <simavr/sim_elf.h>
+#include <simavr/sim_interrupts.h>
+#include <simavr/sim_irq.h>
+
+#include <fcntl.h>
+#include <gelf.h>
+#include <libelf.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#ifndef SIL_EEPROM_PARAMS_ADDR
+#define SIL_EEPROM_PARAMS_ADDR 0x0200u /* params.h PARAMS_EEPROM_ADDR (checked by the tests) */
+#endif
+#define PARAMS_MAGIC 0xA61Du        /* params.c */
+#define PARAM_ROW_BYTES 29u         /* avr-gcc layout of param_def_t */
+#define PARAMS_MAX 64u
+
+#define F_CPU_HZ 16000000ull
+#define CYC_PER_US 16ull
+#define SIL_AVR_TRIGGER_SETTLE_US 50u
+#define BOOT_LIMIT_US 200000u
+#define UART_Q 65536u /* power of two */
+#define EE_SIZE 4096u
+
+/* ATmega2560 data-space addresses */
+#define REG_PCIFR 0x3B
+#define REG_WDTCSR 0x60
+#define REG_PCICR 0x68
+#define REG_PCMSK2 0x6D
+#define REG_OCR3AL 0x98
+#define REG_OCR3BL 0x9A
+#define REG_OCR4AL 0xA8
+#define REG_OCR4BL 0xAA
+#define REG_UCSR0B 0xC1
+#define REG_PORTH 0x102
+#define RXEN0_BIT 4u
+#define OPCODE_WDR 0x95A8u
+
+enum { EV_ENCODER = 0, EV_ECHO = 1 };
+
+typedef struct {
+    uint64_t t_us;
+    uint64_t seq;
+    uint8_t kind, idx, val;
+} ev_t;
+
+typedef struct {
+    char name[17];
+    int16_t type;
+    uint16_t ptr;
+    int32_t min, max;
+} prow_t;
+
+static struct {
+    int stop_on_trigger;
+    uint32_t tick_us;
+    uint64_t ev_seq;
+    uint32_t ev_n, late;
+    uint32_t trig_head, trig_n, trig_new;
+    uint8_t trig_idx[SIL_TRIGGER_MAX];
+    uint64_t trig_t[SIL_TRIGGER_MAX];
+    uint32_t trig_count[12];
+    uint64_t limit_cycle;    /* run to this cycle (target or next event) */
+    uint64_t run_until;      /* min(limit, trigger settle deadline) */
+    uint64_t trig_deadline;  /* 0 none */
+    uint32_t wdt_kicks;
+    uint64_t instr;          /* avr->run() calls (instructions + sleep steps) */
+    int dead;                /* core crashed / stopped: time still advances, nothing runs */
+    /* UART */
+    uint8_t rxq[UART_Q];
+    uint32_t rx_head, rx_tail; /* free-running */
+    int xoff, pumping;
+    uint8_t txq[UART_Q];
+    uint32_t tx_head, tx_tail;
+    uint32_t tx_lost;
+    uint32_t log_errors;
+} S;
+
+static ev_t s_heap[SIL_EVENT_MAX];
+static avr_t *g_avr;
+static elf_firmware_t g_fw;
+static int g_fw_loaded;
+static char g_elf_path[4096];
+static prow_t g_params[PARAMS_MAX];
+static int g_param_n = -1; /* -1 table not found */
+static avr_irq_t *g_enc_a[4], *g_enc_b[4], *g_echo[12], *g_uart_in;
+static avr_int_vector_t g_pcint2;
+
+/* ---- event heap (same as the native SIL) ------------------------------------------------ */
+static int ev_less(const ev_t *a, const ev_t *b) { return a->t_us < b->t_us || (a->t_us == b->t_us && a->seq < b->seq); }
+
+static int ev_push(uint8_t kind, uint8_t idx, uint8_t val, uint64_t t_us)
+{
+    if (S.ev_n >= SIL_EVENT_MAX) {
+        return 0;
+    }
+    ev_t e = {t_us, S.ev_seq++, kind, idx, val};
+    uint32_t i = S.ev_n++;
+    while (i > 0u) {
+        uint32_t p = (i - 1u) / 2u;
+        if (!ev_less(&e, &s_heap[p])) {
+            break;
+        }
+        s_heap[i] = s_heap[p];
+        i = p;
+    }
+    s_heap[i] = e;
+    return 1;
+}
+
+static ev_t ev_pop(void)
+{
+    ev_t top = s_heap[0];
+    ev_t last = s_heap[--S.ev_n];
+    if (S.ev_n == 0u) {
+        return top;
+    }
+    uint32_t i = 0u;
+    for (;;) {
+        uint32_t c = 2u * i + 1u;
+        if (c >= S.ev_n) {
+            break;
+        }
+        if (c + 1u < S.ev_n && ev_less(&s_heap[c + 1u], &s_heap[c])) {
+            c++;
+        }
+        if (!ev_less(&s_heap[c], &last)) {
+            break;
+        }
+        s_heap[i] = s_heap[c];
+        i = c;
+    }
+    s_heap[i] = last;
+    return top;
+}
+
+/* ---- ELF: firmware image and the PARAMS table ---------------------------------------------- */
+static const char *elf_path(void)
+{
+    if (g_elf_path[0] != '\0') {
+        return g_elf_path;
+    }
+    const char *e = getenv("AGNAV_AVR_ELF");
+    return e != NULL && e[0] != '\0' ? e : ".pio/build/megaatmega2560/firmware.elf";
+}
+
+void sil_avr_set_elf(const char *path)
+{
+    snprintf(g_elf_path, sizeof g_elf_path, "%s", path != NULL ? path : "");
+    g_fw_loaded = 0;
+    g_param_n = -1;
+}
+
+static uint32_t find_params_symbol(const char *path, uint32_t *size)
+{
+    uint32_t addr = 0;
+    *size = 0;
+    if (elf_version(EV_CURRENT) == EV_NONE) {
+        return 0;
+    }
+    int fd = open(path, O_RDONLY);
+    if (fd < 0) {
+        return 0;
+    }
+    Elf *e = elf_begin(fd, ELF_C_READ, NULL);
+    Elf_Scn *scn = NULL;
+    while (e != NULL && (scn = elf_nextscn(e, scn)) != NULL) {
+        GElf_Shdr sh;
+        if (gelf_getshdr(scn, &sh) == NULL || sh.sh_type != SHT_SYMTAB) {
+            continue;
+        }
+        Elf_Data *d = elf_getdata(scn, NULL);
+        size_t n = sh.sh_entsize ? sh.sh_size / sh.sh_entsize : 0;
+        for (size_t i = 0; d != NULL && i < n; i++) {
+            GElf_Sym sym;
+            if (gelf_getsym(d, (int)i, &sym) == NULL) {
+                continue;
+            }
+            const char *nm = elf_strptr(e, sh.sh_link, sym.st_name);
+            if (nm != NULL && (strcmp(nm, "PARAMS") == 0 || strncmp(nm, "PARAMS.", 7) == 0) &&
+                GELF_ST_TYPE(sym.st_info) == STT_OBJECT) {
+                addr = (uint32_t)sym.st_value;
+                *size = (uint32_t)sym.st_size;
+            }
+        }
+    }
+    if (e != NULL) {
+        elf_end(e);
+    }
+    close(fd);
+    return addr;
+}
+
+static int load_elf(void)
+{
+    if (g_fw_loaded) {
+        return 0;
+    }
+    const char *path = elf_path();
+    memset(&g_fw, 0, sizeof g_fw);
+    /* libsimavr's ELF loader chats on stdout */
+    fflush(stdout);
+    int saved = dup(1);
+    int devnull = open("/dev/null", O_WRONLY);
+    if (saved >= 0 && devnull >= 0) {
+        dup2(devnull, 1);
+    }
+    int rc = elf_read_firmware(path, &g_fw);
+    fflush(stdout);
+    if (saved >= 0 && devnull >= 0) {
+        dup2(saved, 1);
+    }
+    if (saved >= 0) {
+        close(saved);
+    }
+    if (devnull >= 0) {
+        close(devnull);
+    }
+    if (rc != 0 || g_fw.flash == NULL) {
+        fprintf(stderr, "avr_sil: cannot read ELF '%s'\n", path);
+        return -1;
+    }
+    g_param_n = -1;
+    uint32_t size = 0;
+    uint32_t addr = find_params_symbol(path, &size);
+    if (addr != 0u && size % PARAM_ROW_BYTES == 0u && size / PARAM_ROW_BYTES <= PARAMS_MAX &&
+        addr + size <= g_fw.flashbase + g_fw.flashsize) {
+        const uint8_t *p = g_fw.flash + (addr - g_fw.flashbase);
+        uint32_t n = size / PARAM_ROW_BYTES;
+        for (uint32_t i = 0; i < n; i++, p += PARAM_ROW_BYTES) {
+            prow_t *r = &g_params[i];
+            memcpy(r->name, p, 17);
+            r->type = (int16_t)(p[17] | (p[18] << 8));
+            r->ptr = (uint16_t)(p[19] | (p[20] << 8));
+            r->min = (int32_t)((uint32_t)p[21] | (uint32_t)p[22] << 8 | (uint32_t)p[23] << 16 | (uint32_t)p[24] << 24);
+            r->max = (int32_t)((uint32_t)p[25] | (uint32_t)p[26] << 8 | (uint32_t)p[27] << 16 | (uint32_t)p[28] << 24);
+        }
+        g_param_n = (int)n;
+    }
+    g_fw_loaded = 1;
+    return 0;
+}
+
+/* ---- simavr plumbing --------------------------------------------------------------------- */
+static void quiet_logger(avr_t *avr, const int level, const char *fmt, va_list ap)
+{
+    (void)avr;
+    (void)fmt;
+    (void)ap;
+    if (level <= LOG_ERROR) {
+        S.log_errors++;
+    }
+}
+
+static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
+{
+    (void)avr; /* simavr's raw mode would usleep() to stay in real time: never here */
+    (void)how_long;
+}
+
+static avr_cycle_count_t wake(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    (void)avr;
+    (void)when;
+    (void)param;
+    return 0; /* only bounds a sleep's fast-forward */
+}
+
+static avr_uart_t *g_uart0;
+DEFINE_FIFO(uint16_t, uart_fifo); /* the accessors of avr_uart.h's input FIFO (static inline) */
+
+static avr_uart_t *find_uart0(avr_t *avr)
+{
+    for (avr_io_t *io = avr->io_port; io != NULL; io = io->next) {
+        if (io->kind != NULL && strcmp(io->kind, "uart") == 0 && ((avr_uart_t *)io)->name == '0') {
+            return (avr_uart_t *)io;
+        }
+    }
+    return NULL;
+}
+
+static avr_cycle_count_t uart_pace(avr_t *avr, avr_cycle_count_t when, void *param);
+
+/* simavr computes the byte time when UBRR0 is written; hal_uart_init() writes UBRR0 before
+ * U2X0, so simavr would run the UART at half speed (and counts a parity bit that 8N1 does
+ * not have). Byte time of the real USART: 10 bits x (UBRR0 + 1) x (U2X0 ? 8 : 16) cycles. */
+static void uart_fix_baud(void)
+{
+    if (g_uart0 == NULL || g_avr == NULL) {
+        return;
+    }
+    uint32_t ubrr = (uint32_t)(g_avr->data[0xC4] | ((g_avr->data[0xC5] & 0x0Fu) << 8)); /* UBRR0L/H */
+    uint32_t u2x = g_avr->data[0xC0] & 0x02u;                                            /* UCSR0A U2X0 */
+    g_uart0->cycles_per_byte = 10u * (ubrr + 1u) * (u2x ? 8u : 16u);
+}
+
+/* Feed queued link bytes to simavr's receiver while its input FIFO has room (XOFF / a full
+ * FIFO stops it). simavr 1.6 signals XON only when the firmware polls UCSR0A, which this
+ * interrupt-driven firmware never does, so a pacing timer (one byte time) tops the FIFO up
+ * while bytes wait. */
+static void uart_pump(void)
+{
+    if (g_avr == NULL || S.pumping || !(g_avr->data[REG_UCSR0B] & (1u << RXEN0_BIT))) {
+        return;
+    }
+    S.pumping = 1;
+    uart_fix_baud();
+    while (S.rx_tail != S.rx_head) {
+        if (g_uart0 != NULL ? uart_fifo_isfull(&g_uart0->input) : S.xoff) {
+            break;
+        }
+        uint8_t b = S.rxq[S.rx_tail & (UART_Q - 1u)];
+        S.rx_tail++;
+        avr_raise_irq(g_uart_in, b);
+    }
+    if (S.rx_tail != S.rx_head && avr_cycle_timer_status(g_avr, uart_pace, NULL) == 0) {
+        avr_cycle_count_t per = g_uart0 != NULL && g_uart0->cycles_per_byte ? g_uart0->cycles_per_byte : 2720u;
+        avr_cycle_timer_register(g_avr, per, uart_pace, NULL);
+    }
+    S.pumping = 0;
+}
+
+static avr_cycle_count_t uart_pace(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    (void)avr;
+    (void)when;
+    (void)param;
+    uart_pump(); /* re-registers itself while bytes wait */
+    return 0;
+}
+
+static void on_uart_out(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    (void)irq;
+    (void)param;
+    if (S.tx_head - S.tx_tail < UART_Q) {
+        S.txq[S.tx_head & (UART_Q - 1u)] = (uint8_t)value;
+        S.tx_head++;
+    } else {
+        S.tx_lost++;
+    }
+}
+
+static void on_xon(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    (void)irq;
+    (void)param;
+    if (value) {
+        S.xoff = 0;
+        uart_pump();
+    }
+}
+
+static void on_xoff(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    (void)irq;
+    (void)param;
+    S.xoff = value != 0;
+}
+
+static uint64_t now_cycle(void) { return g_avr != NULL ? g_avr->cycle : 0u; }
+
+static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    unsigned idx = (unsigned)(uintptr_t)param;
+    if (value != 0 || irq->value == 0) {
+        return; /* the falling edge ends the trigger pulse */
+    }
+    if (S.trig_n < SIL_TRIGGER_MAX) {
+        uint32_t k = (S.trig_head + S.trig_n) % SIL_TRIGGER_MAX;
+        S.trig_idx[k] = (uint8_t)idx;
+        S.trig_t[k] = now_cycle() / CYC_PER_US;
+        S.trig_n++;
+    }
+    S.trig_count[idx]++;
+    S.trig_new++;
+    if (S.stop_on_trigger) {
+        uint64_t dl = now_cycle() + SIL_AVR_TRIGGER_SETTLE_US * CYC_PER_US;
+        S.trig_deadline = dl;
+        S.run_until = dl < S.limit_cycle ? dl : S.limit_cycle;
+        avr_cycle_timer_register(g_avr, dl - now_cycle(), wake, (void *)1); /* own slot: keeps run_core's */
+    }
+}
+
+static void enc_set(uint8_t i, uint8_t ab)
+{
+    if (g_avr == NULL || i >= 4u) {
+        return;
+    }
+    uint8_t a = (uint8_t)((ab >> 1) & 1u), b = (uint8_t)(ab & 1u);
+    uint8_t before = (uint8_t)((g_enc_a[i]->value ? 1u : 0u) | (g_enc_b[i]->value ? 2u : 0u));
+    avr_raise_irq(g_enc_a[i], a);
+    avr_raise_irq(g_enc_b[i], b);
+    uint8_t after = (uint8_t)(a | (b << 1));
+    uint8_t changed = (uint8_t)((before ^ after) << (2u * i));
+    if (changed & g_avr->data[REG_PCMSK2]) {
+        avr_raise_interrupt(g_avr, &g_pcint2);
+    }
+}
+
+static void echo_set(uint8_t i, uint8_t level)
+{
+    if (g_avr != NULL && i < 12u) {
+        avr_raise_irq(g_echo[i], level ? 1u : 0u);
+    }
+}
+
+static void ee_get(uint32_t addr, uint8_t *dst, uint32_t len)
+{
+    if (g_avr == NULL || len == 0u) {
+        return;
+    }
+    avr_eeprom_desc_t d = {dst, (uint16_t)addr, len};
+    avr_ioctl(g_avr, AVR_IOCTL_EEPROM_GET, &d);
+}
+
+static void ee_set(uint32_t addr, const uint8_t *src, uint32_t len)
+{
+    if (g_avr == NULL || len == 0u) {
+        return;
+    }
+    avr_eeprom_desc_t d = {(uint8_t *)src, (uint16_t)addr, len};
+    avr_ioctl(g_avr, AVR_IOCTL_EEPROM_SET, &d);
+}
+
+/* ---- life cycle ----------------------------------------------------------------------------- */
+uint32_t sil_api_version(void) { return SIL_API_VERSION; }
+
+void sil_init(void)
+{
+    memset(&S, 0, sizeof S);
+    S.tick_us = 100u;
+    S.stop_on_trigger = 1;
+    avr_global_logger_set(quiet_logger);
+    if (g_avr != NULL) {
+        avr_terminate(g_avr);
+        g_avr = NULL; /* the avr_t itself is leaked (a few KB per power-on) */
+    }
+    if (load_elf() != 0) {
+        return;
+    }
+    g_avr = avr_make_mcu_by_name("atmega2560");
+    if (g_avr == NULL) {
+        return;
+    }
+    avr_init(g_avr);
+    g_avr->log = LOG_NONE;
+    avr_load_firmware(g_avr, &g_fw);
+    g_avr->frequency = (uint32_t)F_CPU_HZ;
+    g_avr->sleep = no_sleep;
+
+    uint32_t flags = 0;
+    avr_ioctl(g_avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+    flags &= ~(uint32_t)(AVR_UART_FLAG_STDIO | AVR_UART_FLAG_POLL_SLEEP);
+    avr_ioctl(g_avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+    avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, NULL);
+    avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, NULL);
+    avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff, NULL);
+    g_uart_in = avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+    g_uart0 = find_uart0(g_avr);
+
+    /* simavr's ATmega2560 has no PCINT2 (PORTK): modelled as in avr_harness.c. Vector 11,
+     * PCICR 0x68 bit 2 enable, PCIFR 0x3B bit 2 flag. */
+    memset(&g_pcint2, 0, sizeof g_pcint2);
+    g_pcint2.enable = (avr_regbit_t)AVR_IO_REGBIT(REG_PCICR, 2);
+    g_pcint2.raised = (avr_regbit_t)AVR_IO_REGBIT(REG_PCIFR, 2);
+    g_pcint2.vector = 11;
+    avr_register_vector(g_avr, &g_pcint2);
+    for (unsigned i = 0; i < 4u; i++) {
+        g_enc_a[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ('K'), (int)(2u * i));
+        g_enc_b[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ('K'), (int)(2u * i + 1u));
+        avr_raise_irq(g_enc_a[i], 0);
+        avr_raise_irq(g_enc_b[i], 0);
+    }
+    for (unsigned i = 0; i < 12u; i++) {
+        char trig_port = i < 8u ? 'A' : 'C', echo_port = i < 8u ? 'B' : 'D';
+        unsigned pin = i < 8u ? i : i - 8u;
+        avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ(trig_port), (int)pin), on_trigger,
+                                (void *)(uintptr_t)i);
+        g_echo[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ(echo_port), (int)pin);
+    }
+    /* INTn pins in low-level mode (reset state; INT4/INT5 = PE4/PE5 carry the servo PWM, INT0..3
+     * the echoes 8..11 before EICRA is set) make simavr poll the pin with an avr_ioctl() every
+     * cycle while it is low: up to 5x slower. The firmware never uses level mode: turned off. */
+    for (uint8_t i = 0; i < 8u; i++) {
+        avr_extint_set_strict_lvl_trig(g_avr, i, 0);
+    }
+}
+
+/* Run the core until run_until (an instruction boundary at or after it). */
+static void run_core(void)
+{
+    avr_t *avr = g_avr;
+    if (avr == NULL) {
+        return;
+    }
+    if (S.dead) {
+        if (avr->cycle < S.run_until) {
+            avr->cycle = S.run_until;
+        }
+        return;
+    }
+    if (avr->cycle < S.run_until) {
+        avr_cycle_timer_register(avr, S.run_until - avr->cycle, wake, NULL);
+    }
+    while (avr->cycle < S.run_until) {
+        uint32_t pc = avr->pc;
+        if ((uint16_t)(avr->flash[pc] | (avr->flash[pc + 1u] << 8)) == OPCODE_WDR) {
+            S.wdt_kicks++;
+        }
+        avr->run(avr);
+        S.instr++;
+        if (avr->state == cpu_Crashed || avr->state == cpu_Done) {
+            S.dead = 1;
+            avr->cycle = S.run_until;
+            break;
+        }
+    }
+    avr_cycle_timer_cancel(avr, wake, NULL);
+    avr_cycle_timer_cancel(avr, wake, (void *)1);
+}
+
+void sil_boot(void)
+{
+    if (g_avr == NULL) {
+        return;
+    }
+    /* agnav_setup() ends with hal_watchdog_start(): boot is done when WDTCSR has WDE. */
+    uint64_t limit = BOOT_LIMIT_US * CYC_PER_US;
+    while (!(g_avr->data[REG_WDTCSR] & 0x08u) && g_avr->cycle < limit && !S.dead) {
+        S.limit_cycle = S.run_until = g_avr->cycle + 16u;
+        run_core();
+    }
+    uart_fix_baud();
+    S.trig_deadline = 0;
+}
+
+void sil_reset(void)
+{
+    sil_init();
+    sil_boot();
+}
+
+void sil_reboot(void)
+{
+    static uint8_t keep[EE_SIZE];
+    ee_get(0, keep, EE_SIZE);
+    sil_init();
+    ee_set(0, keep, EE_SIZE);
+    sil_boot();
+}
+
+/* ---- time -------------------------------------------------------------------------------------- */
+uint64_t sil_time_us(void) { return now_cycle() / CYC_PER_US; }
+
+void sil_set_tick_us(uint32_t tick_us) { S.tick_us = tick_us; }
+void sil_set_stop_on_trigger(int on) { S.stop_on_trigger = on != 0; }
+uint64_t sil_loop_passes(void) { return 0u; }
+
+static void deliver_due(void)
+{
+    uint64_t now = sil_time_us();
+    while (S.ev_n > 0u && s_heap[0].t_us <= now) {
+        ev_t e = ev_pop();
+        if (e.t_us < now) {
+            S.late++;
+        }
+        if (e.kind == EV_ENCODER) {
+            enc_set(e.idx, e.val);
+        } else {
+            echo_set(e.idx, e.val);
+        }
+    }
+}
+
+uint64_t sil_step_to(uint64_t target)
+{
+    if (g_avr == NULL) {
+        return 0u;
+    }
+    deliver_due();
+    uart_pump();
+    S.trig_new = 0u;
+    S.trig_deadline = 0u;
+    while (sil_time_us() < target) {
+        uint64_t lim = target * CYC_PER_US;
+        if (S.ev_n > 0u && s_heap[0].t_us * CYC_PER_US < lim) {
+            lim = s_heap[0].t_us * CYC_PER_US;
+        }
+        S.limit_cycle = lim;
+        S.run_until = S.trig_deadline != 0u && S.trig_deadline < lim ? S.trig_deadline : lim;
+        if (S.run_until > g_avr->cycle) {
+            run_core();
+        }
+        deliver_due();
+        uart_pump();
+        if (S.stop_on_trigger && S.trig_new != 0u && S.trig_deadline != 0u && g_avr->cycle >= S.trig_deadline) {
+            break;
+        }
+    }
+    S.trig_deadline = 0u;
+    return sil_time_us();
+}
+
+uint32_t sil_step(uint32_t dt_us)
+{
+    uint64_t t0 = sil_time_us();
+    return (uint32_t)(sil_step_to(t0 + dt_us) - t0);
+}
+
+/* ---- serial ---------------------------------------------------------------------------------------- */
+uint32_t sil_uart_write(const uint8_t *data, uint32_t len)
+{
+    uint32_t n = 0;
+    while (n < len && S.rx_head - S.rx_tail < UART_Q) {
+        S.rxq[S.rx_head & (UART_Q - 1u)] = data[n++];
+        S.rx_head++;
+    }
+    uart_pump();
+    return n;
+}
+
+uint32_t sil_uart_read(uint8_t *buf, uint32_t max)
+{
+    uint32_t n = 0;
+    while (n < max && S.tx_tail != S.tx_head) {
+        buf[n++] = S.txq[S.tx_tail & (UART_Q - 1u)];
+        S.tx_tail++;
+    }
+    return n;
+}
+
+/* ---- encoders and sonar ------------------------------------------------------------------------------ */
+void sil_encoder_edge(uint8_t idx, uint8_t ab) { enc_set(idx, ab); }
+
+uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_t *ab, uint32_t n)
+{
+    uint32_t k = 0u;
+    for (; k < n; k++) {
+        if (!ev_push(EV_ENCODER, idx, ab[k], t_us[k])) {
+            break;
+        }
+    }
+    return k;
+}
+
+int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(EV_ECHO, idx, level != 0u, t_us); }
+
+uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
+{
+    uint32_t k = 0u;
+    while (k < max && S.trig_n > 0u) {
+        idx[k] = S.trig_idx[S.trig_head];
+        t_us[k] = S.trig_t[S.trig_head];
+        S.trig_head = (S.trig_head + 1u) % SIL_TRIGGER_MAX;
+        S.trig_n--;
+        k++;
+    }
+    return k;
+}
+
+uint32_t sil_sonar_trigger_count(uint8_t idx) { return idx < 12u ? S.trig_count[idx] : 0u; }
+void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_set(idx, level); }
+uint32_t sil_pending_events(void) { return S.ev_n; }
+uint32_t sil_late_events(void) { return S.late; }
+
+/* ---- actuators ---------------------------------------------------------------------------------------- */
+static uint16_t reg16(uint16_t lo) { return g_avr != NULL ? (uint16_t)(g_avr->data[lo] | (g_avr->data[lo + 1u] << 8)) : 0u; }
+
+uint16_t sil_servo_us(uint8_t channel)
+{
+    if (channel > 1u) {
+        return 0u;
+    }
+    return (uint16_t)(reg16(channel == 0u ? REG_OCR3AL : REG_OCR3BL) / 2u);
+}
+
+uint8_t sil_pwm_duty(uint8_t channel)
+{
+    if (channel > 1u || g_avr == NULL) {
+        return 0u;
+    }
+    return g_avr->data[channel == 0u ? REG_OCR4AL : REG_OCR4BL];
+}
+
+uint8_t sil_pwm_reverse(uint8_t channel)
+{
+    if (channel > 1u || g_avr == NULL) {
+        return 0u;
+    }
+    return (uint8_t)((g_avr->data[REG_PORTH] >> (5u + channel)) & 1u);
+}
+
+static uint16_t wdt_timeout_ms(void)
+{
+    if (g_avr == NULL) {
+        return 0u;
+    }
+    uint8_t v = g_avr->data[REG_WDTCSR];
+    if (!(v & 0x08u)) {
+        return 0u;
+    }
+    static const uint16_t ms[10] = {15, 30, 60, 120, 250, 500, 1000, 2000, 4000, 8000};
+    uint8_t p = (uint8_t)((v & 0x07u) | ((v >> 2) & 0x08u));
+    return p < 10u ? ms[p] : 0u;
+}
+
+void sil_outputs(sil_outputs_t *out)
+{
+    memset(out, 0, sizeof *out);
+    for (uint8_t i = 0; i < 2u; i++) {
+        out->servo_us[i] = sil_servo_us(i);
+        out->duty[i] = sil_pwm_duty(i);
+        out->reverse[i] = sil_pwm_reverse(i);
+    }
+    out->wdt_kicks = S.wdt_kicks;
+    out->wdt_timeout_ms = wdt_timeout_ms();
+}
+
+/* ---- parameters and EEPROM ------------------------------------------------------------------------------ */
+static int param_index(const char *name)
+{
+    for (int i = 0; i < g_param_n; i++) {
+        if (strncmp(g_params[i].name, name, 16) == 0 && (strlen(name) <= 16u)) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+static int32_t param_read(int i)
+{
+    const prow_t *r = &g_params[i];
+    const uint8_t *v = g_avr->data + r->ptr;
+    switch (r->type) {
+    case 0: return v[0];
+    case 1: return (uint16_t)(v[0] | (v[1] << 8));
+    case 2: return (int16_t)(v[0] | (v[1] << 8));
+    default: return (int32_t)((uint32_t)v[0] | (uint32_t)v[1] << 8 | (uint32_t)v[2] << 16 | (uint32_t)v[3] << 24);
+    }
+}
+
+int sil_param_set(const char *name, int32_t value)
+{
+    int i = g_avr != NULL ? param_index(name) : -1;
+    if (i < 0) {
+        return -1; /* PARAMS_UNKNOWN */
+    }
+    const prow_t *r = &g_params[i];
+    if (value < r->min || value > r->max) {
+        return -2; /* PARAMS_OUT_OF_RANGE */
+    }
+    uint8_t *v = g_avr->data + r->ptr;
+    unsigned n = r->type == 0 ? 1u : r->type == 3 ? 4u : 2u;
+    for (unsigned k = 0; k < n; k++) {
+        v[k] = (uint8_t)((uint32_t)value >> (8u * k));
+    }
+    return 0;
+}
+
+int sil_param_get(const char *name, int32_t *out)
+{
+    int i = g_avr != NULL ? param_index(name) : -1;
+    if (i < 0) {
+        return -1;
+    }
+    *out = param_read(i);
+    return 0;
+}
+
+static uint16_t crc16_ccitt_false(uint16_t crc, const uint8_t *p, uint32_t n)
+{
+    while (n-- > 0u) {
+        crc ^= (uint16_t)(*p++ << 8);
+        for (int b = 0; b < 8; b++) {
+            crc = (uint16_t)((crc & 0x8000u) ? (((unsigned)crc << 1) ^ 0x1021u) : ((unsigned)crc << 1));
+        }
+    }
+    return crc;
+}
+
+int sil_param_save(void)
+{
+    if (g_avr == NULL || g_param_n < 0) {
+        return -3; /* PARAMS_STORAGE */
+    }
+    uint8_t rec[4u + 4u * PARAMS_MAX + 2u];
+    uint32_t n = 0;
+    rec[n++] = (uint8_t)(PARAMS_MAGIC & 0xFFu);
+    rec[n++] = (uint8_t)(PARAMS_MAGIC >> 8);
+    rec[n++] = (uint8_t)((unsigned)g_param_n & 0xFFu);
+    rec[n++] = (uint8_t)((unsigned)g_param_n >> 8);
+    for (int i = 0; i < g_param_n; i++) {
+        uint32_t v = (uint32_t)param_read(i);
+        for (unsigned k = 0; k < 4u; k++) {
+            rec[n++] = (uint8_t)(v >> (8u * k));
+        }
+    }
+    uint16_t crc = crc16_ccitt_false(0xFFFFu, rec, n);
+    rec[n++] = (uint8_t)(crc & 0xFFu);
+    rec[n++] = (uint8_t)(crc >> 8);
+    ee_set(SIL_EEPROM_PARAMS_ADDR, rec, n);
+    uint8_t back[2] = {0, 0};
+    ee_get(SIL_EEPROM_PARAMS_ADDR + n - 2u, back, 2);
+    return back[0] == rec[n - 2u] && back[1] == rec[n - 1u] ? 0 : -3;
+}
+
+uint32_t sil_eeprom_size(void) { return EE_SIZE; }
+void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len)
+{
+    if (addr < EE_SIZE) {
+        ee_get(addr, dst, len > EE_SIZE - addr ? EE_SIZE - addr : len);
+    }
+}
+void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len)
+{
+    if (addr < EE_SIZE) {
+        ee_set(addr, src, len > EE_SIZE - addr ? EE_SIZE - addr : len);
+    }
+}
+
+/* ---- AVR-only extras ---------------------------------------------------------------------------------------- */
+int sil_avr_param_count(void) { return g_param_n; }
+const char *sil_avr_param_name(int i) { return i >= 0 && i < g_param_n ? g_params[i].name : NULL; }
+uint64_t sil_avr_cycles(void) { return now_cycle(); }
+uint64_t sil_avr_instructions(void) { return S.instr; }
+int sil_avr_state(void) { return g_avr == NULL ? -1 : S.dead ? (int)g_avr->state : 0; } /* 0 ok */
+uint32_t sil_avr_log_errors(void) { return S.log_errors; }
+uint32_t sil_avr_uart_rx_pending(void) { return S.rx_head - S.rx_tail; }
+uint32_t sil_avr_uart_tx_lost(void) { return S.tx_lost; }
+const char *sil_avr_elf(void) { return elf_path(); }
+void sil_avr_debug_uart(uint32_t *out)
+{
+    out[0] = g_uart0 ? g_uart0->input.read : 999u;
+    out[1] = g_uart0 ? g_uart0->input.write : 999u;
+    out[2] = g_uart0 ? (uint32_t)g_uart0->cycles_per_byte : 0u;
+    out[3] = g_avr ? g_avr->data[REG_UCSR0B] : 0u;
+    out[4] = g_avr ? g_avr->data[0xC0] : 0u;
+}

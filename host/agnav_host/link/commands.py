@@ -1,0 +1,486 @@
+"""``agnav`` subcommands of the link area: run, calibrate, flash, replay, param, key, config.
+
+Every command reads the host config (``--config``, see docs/user_guide.md) and lets options
+override it. Exit codes: 0 ok, 1 robot/link failure, 2 usage or configuration error, 130 Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ..cli import parse_goal, subcommand
+
+REPO_ROOT = Path(__file__).resolve().parents[3]
+_sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
+
+_LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
+    (("--device",), {"default": None, "help": "serial:/dev/ttyUSB0:57600, /dev/ttyACM0, tcp:HOST:PORT (SIL: "
+                                              "tcp:127.0.0.1:5760), udp:HOST:PORT (default: [link] device)"}),
+    (("--baud",), {"type": int, "default": None, "help": "baud of a serial device (default 57600)"}),
+    (("--config",), {"default": None, "help": "host config TOML (default ~/.config/agnav/host.toml)"}),
+    (("--tlog",), {"default": None, "help": "telemetry log path (default: [link] log_dir/<command>-<time>.tlog)"}),
+    (("--no-tlog",), {"action": "store_true", "help": "do not write a telemetry log"}),
+    (("--sign",), {"action": "store_true", "help": "sign outgoing frames (MAVLink 2 signing)"}),
+    (("--key-file",), {"default": None, "help": "signing key file (default ~/.config/agnav/signing.key)"}),
+    (("--target-system",), {"type": int, "default": None, "help": "robot system id (default: first heartbeat)"}),
+    (("--wait",), {"type": float, "default": 5.0, "help": "seconds to wait for the robot's heartbeat (default 5)"}),
+]
+
+
+def _err(cmd: str, text: str) -> None:
+    print(f"agnav {cmd}: {text}", file=sys.stderr)
+
+
+def _config(ns: argparse.Namespace) -> Any:
+    from .config import load_config
+
+    return load_config(getattr(ns, "config", None))
+
+
+def _open(ns: argparse.Namespace, cmd: str, cfg: Any) -> Any:
+    """Endpoint from options + config, started, heartbeat seen."""
+    from .endpoint import Endpoint
+    from .keys import load_key
+
+    lc = cfg.link
+    device = ns.device or lc.device
+    key = None
+    if ns.sign or lc.signing or ns.key_file:
+        key = load_key(ns.key_file or lc.key_file or None)
+    tlog = None
+    if not ns.no_tlog:
+        tlog = ns.tlog or str(Path(lc.log_dir) / f"{cmd}-{time.strftime('%Y%m%d-%H%M%S')}.tlog")
+
+    def on_event(text: str) -> None:
+        print(f"[link] {text}", file=sys.stderr, flush=True)
+
+    ep = Endpoint(device, ns.baud or lc.baud, source_system=lc.sysid, source_component=lc.compid,
+                  target_system=ns.target_system if ns.target_system is not None else lc.target_system,
+                  tlog=tlog, key=key, require_signed=lc.require_signed, heartbeat_hz=lc.heartbeat_hz,
+                  link_timeout_s=lc.link_timeout_s, reconnect_delay_s=lc.reconnect_delay_s,
+                  budget_bytes_s=lc.budget_bytes_s, budget_window_s=lc.budget_window_s, on_event=on_event)
+    ep.start(wait_heartbeat_s=ns.wait)
+    if tlog:
+        print(f"logging to {tlog}", file=sys.stderr)
+    return ep
+
+
+def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
+    from .config import ConfigError
+    from .endpoint import LinkTimeout
+    from .keys import KeyError_
+    from .robot import CommandFailed
+
+    try:
+        return int(fn(ns))
+    except (ConfigError, KeyError_, ValueError) as e:
+        _err(cmd, str(e))
+        return 2
+    except (LinkTimeout, CommandFailed, ConnectionError) as e:
+        _err(cmd, str(e))
+        return 1
+
+
+# ---- run ---------------------------------------------------------------------------------------
+def _robot_spec(robot: Any, cfg: Any) -> Any:
+    from ..planning.base import RobotSpec
+
+    p = {}
+    for name in ("DRIVE_KIND", "WHEELBASE_MM", "TRACK_MM", "MAX_SPEED_MM_S", "MAX_STEER_CDEG"):
+        p[name] = robot.param_get(name)
+    ack = p["DRIVE_KIND"] < 0.5
+    return RobotSpec(kinematics="ackermann" if ack else "diff_drive", wheelbase_m=p["WHEELBASE_MM"] / 1000.0,
+                     track_m=p["TRACK_MM"] / 1000.0,
+                     max_speed_m_s=min(cfg.run.max_speed_m_s, p["MAX_SPEED_MM_S"] / 1000.0 or cfg.run.max_speed_m_s),
+                     max_steer_rad=math.radians(p["MAX_STEER_CDEG"] / 100.0))
+
+
+def _observation(state: Any, goal: Any, t_s: float) -> Any:
+    import numpy as np
+
+    from ..types import Observation, Pose2D, SonarFrame
+
+    p = state.pose
+    pose = Pose2D(p.x_m, p.y_m, p.yaw_rad) if p else Pose2D()
+    sonar = None
+    if state.sonar is not None:
+        s = state.sonar
+        st = np.array(s.status)
+        r = np.array(s.ranges_m, dtype=float)
+        r[st != 0] = np.nan  # no echo, fault and stale carry no obstacle range
+        sonar = SonarFrame(stamp_s=t_s, fired=st != 3, echo_us=2.0 * r / 343.0 * 1e6, ranges_m=r)
+    return Observation(t_s=t_s, pose=pose, speed_m_s=p.speed_m_s if p else 0.0,
+                       yaw_rate_rad_s=p.yaw_rate_rad_s if p else 0.0, goal=goal, sonar=sonar)
+
+
+def _status_line(ep: Any, t: float) -> str:
+    st = ep.state
+    b = st.behaviour
+    p = st.pose
+    lay = f"{b.layer_name}/{b.reason_name}" + (f" [{','.join(b.flag_names)}]" if b.flags else "") if b else "?"
+    pose = f"x={p.x_m:6.2f} y={p.y_m:6.2f} yaw={math.degrees(p.yaw_rad):6.1f}" if p else "no pose"
+    link = "up" if ep.stats.link_up else "DOWN"
+    return f"t={t:6.1f} s  {lay:34s} {pose}  link {link} {ep.meter.rate(time.monotonic()):5.0f} B/s"
+
+
+def _cmd_run(ns: argparse.Namespace) -> int:
+    from ..types import DriveCommand, Goal
+
+    cfg = _config(ns)
+    planner_name = ns.planner if ns.planner is not None else cfg.run.planner
+    if ns.autopilot == "ardupilot" and not planner_name:
+        _err("run", "--autopilot ardupilot needs --planner (a stock autopilot has no AgNav behaviour layers)")
+        return 2
+    goal = None
+    if ns.goal is not None:
+        gx, gy, gh = ns.goal
+        goal = Goal(gx, gy, None if gh is None else math.radians(gh), tolerance_m=cfg.run.goal_tolerance_m)
+    if planner_name and goal is None:
+        _err("run", "a host planner needs --goal X,Y[,DEG]")
+        return 2
+    planner = None
+    if planner_name:
+        from ..planning.registry import canonical_name
+
+        canonical_name(planner_name)  # UnknownPlanner (ValueError) before touching the robot
+    rec = None
+    if ns.rrd:
+        from ..viz import Recorder
+
+        rec = Recorder.to_file(ns.rrd)
+    ep = _open(ns, "run", cfg)
+    if ns.autopilot == "ardupilot":
+        from .ardupilot import ArduRover, ArduRoverConfig
+
+        a = cfg.ardupilot
+        robot: Any = ArduRover(ep, ArduRoverConfig(a.mode, a.steer_channel, a.throttle_channel, a.trim_us,
+                                                   a.half_range_us, a.reverse_steer, math.radians(a.max_steer_deg),
+                                                   a.max_speed_m_s, a.wheelbase_m))
+    else:
+        from .robot import AgnavRobot
+
+        robot = AgnavRobot(ep)
+    t0 = time.monotonic()
+    try:
+        spec = None
+        if ns.autopilot == "ardupilot":
+            from ..planning.base import RobotSpec
+
+            a = cfg.ardupilot
+            spec = RobotSpec(kinematics="ackermann", wheelbase_m=a.wheelbase_m, max_speed_m_s=a.max_speed_m_s,
+                             max_steer_rad=math.radians(a.max_steer_deg))
+            robot.start()
+        else:
+            # The firmware declares link loss after LINK_TIMEOUT_MS (500 ms by default) without a
+            # heartbeat or setpoint: a 1 Hz GCS heartbeat alone would trip it between beats.
+            timeout_ms = robot.param_get("LINK_TIMEOUT_MS")
+            ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(timeout_ms / 1000.0, 0.1))
+            robot.release()
+            robot.arm()
+            robot.set_behaviours(follow_wall=ns.follow_wall, goal_seek=goal is not None and not planner_name,
+                                 avoid=not ns.no_avoid)
+            if planner_name:
+                spec = _robot_spec(robot, cfg)
+            elif goal is not None:
+                robot.set_goal(goal.x_m, goal.y_m)
+        if planner_name:
+            from ..planning.registry import make_planner
+
+            planner = make_planner(planner_name, spec)
+            planner.reset()
+        if rec is not None and goal is not None:
+            rec.log_goal(goal.x_m, goal.y_m)
+        period = 1.0 / cfg.run.control_hz
+        next_status = 0.0
+        last_layer = None
+        print(f"running: {'planner ' + planner_name if planner_name else 'firmware layers'}"
+              f"{f', goal ({goal.x_m:g}, {goal.y_m:g})' if goal else ''}; Ctrl-C stops the robot", flush=True)
+        while True:
+            loop_t = time.monotonic()
+            t = loop_t - t0
+            if ns.duration is not None and t >= ns.duration:
+                print("duration reached")
+                break
+            st = ep.state
+            if planner is not None:
+                obs = _observation(st, goal, t)
+                if math.hypot(goal.x_m - obs.pose.x_m, goal.y_m - obs.pose.y_m) <= goal.tolerance_m:
+                    print(f"goal reached at t={t:.1f} s")
+                    break
+                from ..planning.base import PlanningError
+
+                try:
+                    cmd = planner.step(obs)
+                except PlanningError as e:
+                    _err("run", f"planner {planner_name}: {e}; stopping")
+                    robot.stop()
+                    return 1
+                v = max(-spec.max_speed_m_s, min(spec.max_speed_m_s, cmd.speed_m_s))
+                if ns.autopilot == "ardupilot":
+                    robot.drive_command(DriveCommand(v, cmd.yaw_rate_rad_s, cmd.steer_rad))
+                else:
+                    from .robot import steer_from_drive_command
+
+                    phi = steer_from_drive_command(DriveCommand(v, cmd.yaw_rate_rad_s, cmd.steer_rad),
+                                                   spec.kinematics, spec.wheelbase_m, spec.track_m, spec.max_steer_rad)
+                    robot.drive(phi, v)
+                if rec is not None and "path" in obs.extras:
+                    rec.log_plan(obs.extras["path"])
+            elif st.behaviour is not None and st.behaviour.reason == 14:  # GOAL_REACHED
+                print(f"goal reached (firmware) at t={t:.1f} s")
+                break
+            if rec is not None:
+                rec.set_time(t)
+                if st.pose is not None:
+                    rec.log_pose(st.pose)
+                if st.sonar is not None:
+                    rec.log_sonar(st.sonar, st.pose)
+                if st.behaviour is not None:
+                    rec.log_behaviour(st.behaviour)
+                    if (st.behaviour.layer, st.behaviour.reason) != last_layer:
+                        last_layer = (st.behaviour.layer, st.behaviour.reason)
+                        rec.log_layer_change(st.behaviour)
+            if t >= next_status:
+                next_status = t + 1.0 / cfg.run.status_hz
+                print(_status_line(ep, t), flush=True)
+            _sleep(max(0.0, period - (time.monotonic() - loop_t)))
+        for _ in range(3):
+            robot.stop()
+            _sleep(0.05)
+        return 0
+    except KeyboardInterrupt:
+        print("\nCtrl-C: stopping the robot", file=sys.stderr)
+        try:
+            robot.stop()
+            robot.estop(True)
+            print("e-stop engaged (the next `agnav run` releases it)", file=sys.stderr)
+        except Exception as e:
+            print(f"e-stop not confirmed ({e}); the firmware stops by itself on link loss", file=sys.stderr)
+        return 130
+    finally:
+        print(_stats_line(ep), file=sys.stderr)
+        ep.close()
+        if rec is not None:
+            rec.close()
+            print(f"recording: {ns.rrd} (open with `rerun {ns.rrd}`)", file=sys.stderr)
+
+
+def _stats_line(ep: Any) -> str:
+    s = ep.stats
+    return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, peak "
+            f"{s.peak_rx_rate_bytes_s:.0f} B/s (budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
+            f"link losses {s.link_losses}, parse errors {s.rx_parse_errors}, lost {s.rx_seq_lost}")
+
+
+subcommand("run", help="drive a robot (or a SIL over tcp:) with the firmware layers or a host planner; Ctrl-C e-stops",
+           args=_LINK_ARGS + [
+               (("--planner",), {"default": None, "help": "host planner (see `agnav planners`); default: firmware "
+                                                          "move-to-goal layer"}),
+               (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,DEG]",
+                              "help": "goal in the odometry frame, m, m, deg; negatives allowed"}),
+               (("--autopilot",), {"choices": ["agnav", "ardupilot"], "default": "agnav",
+                                   "help": "agnav firmware (default) or a stock ArduPilot Rover"}),
+               (("--duration",), {"type": float, "default": None, "help": "stop after this many seconds"}),
+               (("--follow-wall",), {"action": "store_true", "help": "enable the firmware follow-wall layer"}),
+               (("--no-avoid",), {"action": "store_true", "help": "disable passive obstacle avoidance (careful)"}),
+               (("--rrd",), {"default": None, "help": "save a rerun recording here (open with `rerun FILE`)"}),
+           ], negative_ok=["--goal"])(lambda ns: _guard("run", _cmd_run, ns))
+
+
+# ---- calibrate -----------------------------------------------------------------------------------
+def _cmd_calibrate(ns: argparse.Namespace) -> int:
+    from ..calibration.wizard import Aborted, ConsoleIO, Wizard
+    from .robot import AgnavRobot
+
+    cfg = _config(ns)
+    c = cfg.calibration
+    for k in ("settle_s", "hold_s", "max_step_s", "max_distance_m"):
+        v = getattr(ns, k)
+        if v is not None:
+            setattr(c, k, v)
+    ep = _open(ns, "calibrate", cfg)
+    try:
+        w = Wizard(AgnavRobot(ep), c, ConsoleIO(assume_yes=ns.yes), plot_dir=ns.plot_dir)
+        save = False if ns.no_save else (True if ns.yes else None)
+        try:
+            fit = w.run_steering(save) if ns.table == "steering" else w.run_speed(save)
+        except Aborted as e:
+            _err("calibrate", str(e))
+            return 130 if "interrupted" in str(e) else 1
+        print(f"done: {fit.table.describe()}")
+        return 0
+    finally:
+        ep.close()
+
+
+subcommand("calibrate", help="calibration wizard: sweep raw PWM, fit, write, verify, save (ref 003 procedure)",
+           args=_LINK_ARGS + [
+               (("table",), {"choices": ["steering", "speed"], "help": "which table"}),
+               (("--plot-dir",), {"default": "logs", "help": "where the fit PNG goes (default logs/)"}),
+               (("--yes",), {"action": "store_true", "help": "answer yes to every question (also saves)"}),
+               (("--no-save",), {"action": "store_true", "help": "write and verify, but do not save to EEPROM"}),
+               (("--settle-s",), {"dest": "settle_s", "type": float, "default": None, "help": "override [calibration] settle_s"}),
+               (("--hold-s",), {"dest": "hold_s", "type": float, "default": None, "help": "override [calibration] hold_s"}),
+               (("--max-step-s",), {"dest": "max_step_s", "type": float, "default": None, "help": "override max_step_s"}),
+               (("--max-distance-m",), {"dest": "max_distance_m", "type": float, "default": None,
+                                        "help": "override max_distance_m"}),
+           ])(lambda ns: _guard("calibrate", _cmd_calibrate, ns))
+
+
+# ---- flash ---------------------------------------------------------------------------------------
+def flash_command(env: str, port: str | None, repo: Path = REPO_ROOT) -> tuple[list[str], dict[str, str]]:
+    """The pio command line and environment `agnav flash` runs."""
+    pio = repo / ".venv" / "bin" / "pio"
+    cmd = [str(pio if pio.exists() else (shutil.which("pio") or pio)), "run", "-e", env, "-t", "upload"]
+    if port:
+        cmd += ["--upload-port", port]
+    envv = dict(os.environ)
+    envv["PLATFORMIO_CORE_DIR"] = str(repo / ".pio-core")
+    return cmd, envv
+
+
+def _cmd_flash(ns: argparse.Namespace) -> int:
+    cmd, envv = flash_command(ns.env, ns.port)
+    print("$ PLATFORMIO_CORE_DIR=" + envv["PLATFORMIO_CORE_DIR"] + " " + " ".join(cmd), flush=True)
+    if ns.dry_run:
+        return 0
+    if not Path(cmd[0]).exists():
+        _err("flash", f"{cmd[0]} not found: run `make setup` first")
+        return 2
+    return subprocess.call(cmd, env=envv, cwd=REPO_ROOT)
+
+
+subcommand("flash", help="build and upload the firmware (pio run -e ENV -t upload, offline core in .pio-core)",
+           args=[(("--env",), {"default": "megaatmega2560", "help": "PlatformIO env (default megaatmega2560; stm32f405)"}),
+                 (("--port",), {"default": None, "help": "upload port, e.g. /dev/ttyACM0 (default: pio autodetect)"}),
+                 (("--dry-run",), {"action": "store_true", "help": "print the command only"})])(_cmd_flash)
+
+
+# ---- replay --------------------------------------------------------------------------------------
+def _cmd_replay(ns: argparse.Namespace) -> int:
+    from .replay import summarize_tlog
+
+    if not Path(ns.log).is_file():
+        _err("replay", f"{ns.log}: no such file")
+        return 2
+    s = summarize_tlog(ns.log)
+    print(s.text(ns.budget))
+    if ns.png:
+        from ..viz.plots import plot_run
+
+        try:
+            print(f"plot: {plot_run(s, ns.png)}")
+        except RuntimeError as e:
+            _err("replay", str(e))
+            return 2
+    if ns.rrd:
+        from ..viz import VizUnavailable, record_tlog
+
+        try:
+            print(f"recording: {record_tlog(ns.log, ns.rrd)} (open with `rerun {ns.rrd}`)")
+        except VizUnavailable as e:
+            _err("replay", str(e))
+            return 2
+    return 0
+
+
+subcommand("replay", help="summarise a .tlog (rates, layers, status texts); optional PNG and rerun .rrd",
+           args=[(("log",), {"help": "telemetry log (.tlog, mavutil format)"}),
+                 (("--rrd",), {"default": None, "help": "write a rerun recording of the log"}),
+                 (("--png",), {"default": None, "help": "write a matplotlib plot (path, layer over time)"}),
+                 (("--budget",), {"type": float, "default": 1500.0, "help": "telemetry budget to compare with, B/s"})])(
+    _cmd_replay)
+
+
+# ---- param ---------------------------------------------------------------------------------------
+def _cmd_param(ns: argparse.Namespace) -> int:
+    from .robot import AgnavRobot
+
+    if ns.action in ("get", "set") and not ns.name:
+        _err("param", f"param {ns.action} needs NAME")
+        return 2
+    if ns.action == "set" and ns.value is None:
+        _err("param", "param set needs NAME VALUE")
+        return 2
+    cfg = _config(ns)
+    ep = _open(ns, "param", cfg)
+    try:
+        r = AgnavRobot(ep, timeout_s=ns.timeout)
+        if ns.action == "list":
+            params = r.param_list(timeout_s=max(10.0, ns.timeout * 10))
+            for k, v in params.items():
+                print(f"{k:16s} {v:g}")
+            print(f"{len(params)} parameters", file=sys.stderr)
+        elif ns.action == "get":
+            print(f"{ns.name} {r.param_get(ns.name):g}")
+        else:
+            print(f"{ns.name} {r.param_set(ns.name, float(ns.value)):g}")
+        return 0
+    finally:
+        ep.close()
+
+
+subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARAM_* protocol)",
+           args=_LINK_ARGS + [(("action",), {"choices": ["list", "get", "set"]}),
+                              (("name",), {"nargs": "?", "default": None}),
+                              (("value",), {"nargs": "?", "default": None, "help": "number (negative allowed)"}),
+                              (("--timeout",), {"type": float, "default": 1.0, "help": "per-request timeout, s"})])(
+    lambda ns: _guard("param", _cmd_param, ns))
+
+
+# ---- key -----------------------------------------------------------------------------------------
+def _cmd_key(ns: argparse.Namespace) -> int:
+    from .keys import default_key_path, fingerprint, load_key, new_key
+
+    if ns.action == "new":
+        p, key = new_key(ns.key_file, force=ns.force)
+        print(f"new signing key in {p} (mode 0600), fingerprint {fingerprint(key)}")
+        print("use it with `agnav run --sign` or [link] signing = true; give the same key to every peer that verifies")
+        return 0
+    p = Path(ns.key_file) if ns.key_file else default_key_path()
+    key = load_key(p)
+    print(f"key file    {p}")
+    print(f"fingerprint {fingerprint(key)}")
+    if ns.reveal:
+        print(f"secret      {key.hex()}")
+    return 0
+
+
+subcommand("key", help="MAVLink 2 signing key: new (create, 0600) or show (fingerprint; --reveal prints the secret)",
+           args=[(("action",), {"choices": ["new", "show"]}),
+                 (("--key-file",), {"default": None, "help": "key file (default ~/.config/agnav/signing.key)"}),
+                 (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),
+                 (("--reveal",), {"action": "store_true", "help": "show: also print the secret key (hex)"})])(
+    lambda ns: _guard("key", _cmd_key, ns))
+
+
+# ---- config --------------------------------------------------------------------------------------
+def _cmd_config(ns: argparse.Namespace) -> int:
+    from .config import config_template, default_config_path
+
+    if ns.template:
+        print(config_template(), end="")
+        return 0
+    cfg = _config(ns)
+    import dataclasses
+
+    print(f"# effective host configuration ({cfg.source or 'defaults; file ' + str(default_config_path()) + ' absent'})")
+    for section in ("link", "run", "calibration", "ardupilot", "viz"):
+        print(f"[{section}]")
+        for k, v in dataclasses.asdict(getattr(cfg, section)).items():
+            print(f"{k} = {v!r}")
+    return 0
+
+
+subcommand("config", help="show the effective host configuration, or --template for a file with every default",
+           args=[(("--config",), {"default": None, "help": "host config TOML"}),
+                 (("--template",), {"action": "store_true", "help": "print a complete config file"})])(
+    lambda ns: _guard("config", _cmd_config, ns))

@@ -1,0 +1,107 @@
+"""Summaries of .tlog files (``agnav replay``): duration, messages and bytes per type and direction,
+telemetry rate against the budget, time per behaviour layer, e-stops, status texts, path length."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .state import LAYER_NAMES, REASON_NAMES
+from .tlog import read_tlog
+
+__all__ = ["TlogSummary", "summarize_tlog"]
+
+
+@dataclass
+class TlogSummary:
+    path: str
+    duration_s: float = 0.0
+    rx_msgs: Counter[str] = field(default_factory=Counter)
+    tx_msgs: Counter[str] = field(default_factory=Counter)
+    rx_bytes: int = 0
+    tx_bytes: int = 0
+    layer_time_s: dict[str, float] = field(default_factory=dict)
+    layer_changes: list[tuple[float, str, str]] = field(default_factory=list)
+    statustexts: list[tuple[float, str]] = field(default_factory=list)
+    path_length_m: float = 0.0
+    final_pose: tuple[float, float, float] | None = None
+    poses: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, yaw
+    layers: list[tuple[float, int]] = field(default_factory=list)  # t, layer
+
+    @property
+    def rx_rate_bytes_s(self) -> float:
+        return self.rx_bytes / self.duration_s if self.duration_s > 0 else 0.0
+
+    def text(self, budget_bytes_s: float = 1500.0) -> str:
+        out = [f"{self.path}: {self.duration_s:.1f} s, received {sum(self.rx_msgs.values())} frames / "
+               f"{self.rx_bytes} B ({self.rx_rate_bytes_s:.0f} B/s, budget {budget_bytes_s:.0f} B/s"
+               f"{', OVER' if self.rx_rate_bytes_s > budget_bytes_s else ''}), sent {sum(self.tx_msgs.values())} "
+               f"frames / {self.tx_bytes} B"]
+        out.append("received:")
+        for k, n in self.rx_msgs.most_common():
+            out.append(f"  {k:28s} {n:7d}  {n / self.duration_s if self.duration_s else 0:6.1f} Hz")
+        if self.tx_msgs:
+            out.append("sent:")
+            for k, n in self.tx_msgs.most_common():
+                out.append(f"  {k:28s} {n:7d}")
+        if self.layer_time_s:
+            out.append("time per behaviour layer:")
+            for k, v in sorted(self.layer_time_s.items(), key=lambda kv: -kv[1]):
+                out.append(f"  {k:16s} {v:7.1f} s")
+        if self.layer_changes:
+            out.append(f"layer changes: {len(self.layer_changes)} (first 10)")
+            for t, layer, reason in self.layer_changes[:10]:
+                out.append(f"  t={t:7.2f} s  {layer} ({reason})")
+        for t, s in self.statustexts[:20]:
+            out.append(f"statustext t={t:7.2f} s: {s}")
+        if self.final_pose is not None:
+            x, y, yaw = self.final_pose
+            out.append(f"path {self.path_length_m:.2f} m, final pose x={x:.2f} m y={y:.2f} m yaw={math.degrees(yaw):.1f} deg")
+        return "\n".join(out)
+
+
+def summarize_tlog(path: str | Path, host_sysid: int = 255) -> TlogSummary:
+    s = TlogSummary(str(path))
+    t0 = t_last = None
+    last_layer: tuple[int, int] | None = None
+    last_layer_t = 0.0
+    prev_xy: tuple[float, float] | None = None
+    for t, m in read_tlog(path):
+        t0 = t if t0 is None else t0
+        t_last = t
+        rel = t - t0
+        typ = m.get_type()
+        n = len(m.get_msgbuf())
+        if m.get_srcSystem() == host_sysid:
+            s.tx_msgs[typ] += 1
+            s.tx_bytes += n
+            continue
+        s.rx_msgs[typ] += 1
+        s.rx_bytes += n
+        if typ == "AGNAV_BEHAVIOUR_STATUS":
+            key = (m.active_layer, m.reason)
+            name = LAYER_NAMES.get(m.active_layer, str(m.active_layer))
+            if last_layer is not None:
+                prev = LAYER_NAMES.get(last_layer[0], str(last_layer[0]))
+                s.layer_time_s[prev] = s.layer_time_s.get(prev, 0.0) + rel - last_layer_t
+            last_layer_t = rel
+            if key != last_layer:
+                s.layer_changes.append((rel, name, REASON_NAMES.get(m.reason, str(m.reason))))
+                s.layers.append((rel, m.active_layer))
+            last_layer = key
+        elif typ == "AGNAV_ODOMETRY":
+            x, y, yaw = m.x_mm / 1e3, m.y_mm / 1e3, math.radians(m.yaw_cdeg / 100.0)
+            if prev_xy is not None:
+                s.path_length_m += math.hypot(x - prev_xy[0], y - prev_xy[1])
+            prev_xy = (x, y)
+            s.final_pose = (x, y, yaw)
+            s.poses.append((rel, x, y, yaw))
+        elif typ == "STATUSTEXT":
+            txt = m.text if isinstance(m.text, str) else m.text.decode("ascii", "replace")
+            s.statustexts.append((rel, txt.split("\x00", 1)[0]))
+    if t0 is not None and t_last is not None:
+        s.duration_s = t_last - t0
+    return s
