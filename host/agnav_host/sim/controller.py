@@ -14,6 +14,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
+from ..planning.base import free_distances_m  # one implementation for stand-ins and planners
 
 __all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m"]
 
@@ -22,25 +23,6 @@ class Controller(Protocol):
     def reset(self) -> None: ...
 
     def step(self, obs: Observation) -> DriveCommand: ...
-
-
-def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:
-    """How far a disc of radius ``half_width_m`` can travel straight along each direction.
-
-    ``points_xy`` (k, 2) obstacle points in the robot frame (disc centred at the origin), m;
-    ``directions_rad`` (d,). Returns (d,) distances in m, capped at ``horizon_m``.
-    """
-    out = np.full(len(directions_rad), horizon_m)
-    if len(points_xy) == 0:
-        return out
-    ux, uy = np.cos(directions_rad)[:, None], np.sin(directions_rad)[:, None]
-    px, py = points_xy[None, :, 0], points_xy[None, :, 1]
-    along = px * ux + py * uy
-    lat = np.abs(px * uy - py * ux)
-    block = (lat < half_width_m) & (along > -half_width_m)
-    dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
-    dist = np.where(block, np.maximum(dist, 0.0), np.inf)
-    return np.minimum(out, dist.min(axis=1))
 
 
 @dataclass(frozen=True)
