@@ -57,6 +57,22 @@ static const PARAMS_ROM param_def_t PARAMS[] = {
     {"WALL_CANYON_MS", PARAM_U16, &p_bhv.wall_canyon_ms, 0, 10000},
     {"GOAL_SPEED_MM_S", PARAM_I16, &p_bhv.goal_speed_mm_s, 0, 2000},
     {"GOAL_TOL_MM", PARAM_U16, &p_bhv.goal_tol_mm, 10, 2000},
+    {"HOST_TIMEOUT_MS", PARAM_U16, &p_bhv.host_timeout_ms, 100, 5000},
+    {"MAN_TIMEOUT_MS", PARAM_U16, &p_bhv.manual_timeout_ms, 100, 5000},
+    {"AVOID_CONE_CDEG", PARAM_I16, &p_bhv.avoid_cone_cdeg, 500, 9000},
+    {"AVOID_MOVE_MM_S", PARAM_I16, &p_bhv.avoid_moving_mm_s, 0, 500},
+    {"AVOID_STOP_MS", PARAM_U16, &p_bhv.avoid_stop_ms, 0, 5000},
+    {"AVOID_BACK_MM_S", PARAM_I16, &p_bhv.avoid_backoff_speed_mm_s, 20, 1000},
+    {"AVOID_REAR_MM", PARAM_U16, &p_bhv.avoid_rear_clear_mm, 0, 2000},
+    {"WALL_DT_MS", PARAM_U16, &p_bhv.wall_dt_ms, 20, 1000},
+    {"WALL_IMAX_STEPS", PARAM_U8, &p_bhv.wall_imax_steps, 1, 100},
+    {"WALL_IMIN_STEPS", PARAM_U8, &p_bhv.wall_imin_steps, 1, 200},
+    {"WALL_DEADBAND", PARAM_U16, &p_bhv.wall_deadband, 0, 10000},
+    {"WALL_GAIN_Q4", PARAM_U8, &p_bhv.wall_gain_q4, 0, 255},
+    {"WALL_TURN_CDEG", PARAM_I16, &p_bhv.wall_turn_steer_cdeg, 0, 4500},
+    {"WALL_TIE_DIR", PARAM_I8, &p_bhv.wall_tie_dir, -1, 1},
+    {"GOAL_MIN_MM_S", PARAM_I16, &p_bhv.goal_min_speed_mm_s, 0, 2000},
+    {"GOAL_SLOW_MM", PARAM_U16, &p_bhv.goal_slow_mm, 0, 10000},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
@@ -290,11 +306,19 @@ static void task_telemetry_10hz(void)
                                     (int16_t)pose.yaw_rate_cdeg_s);
     send(&msg);
 
-    /* Encoders at 2 Hz (odometry above already carries the motion at 10 Hz). */
+    /* Encoders at 2 Hz (odometry above already carries the motion at 10 Hz), and the standard
+     * LOCAL_POSITION_NED at 2 Hz for ground stations (NED from REP-103: y_east = -y_left). */
     static uint8_t s_enc_div;
     if (++s_enc_div >= 5u) {
         s_enc_div = 0u;
         send_encoder_status(now_ms);
+    } else if (s_enc_div == 2u) {
+        int32_t c = behaviour_cos_q14(pose.heading_cdeg), sn = behaviour_sin_q14(pose.heading_cdeg);
+        float v = (float)pose.speed_mm_s * 0.001f;
+        mavlink_msg_local_position_ned_pack(link_sysid(), link_compid(), &msg, now_ms, (float)pose.x_mm * 0.001f,
+                                            -(float)pose.y_mm * 0.001f, 0.0f, v * (float)c / 16384.0f,
+                                            -v * (float)sn / 16384.0f, 0.0f);
+        send(&msg);
     }
 
     if (s_ring != 0 && s_in.sonar.seq != 0u) {
@@ -331,6 +355,21 @@ static uint8_t s_stats_next;
 static void task_telemetry_1hz(void)
 {
     mavlink_message_t msg;
+    /* SYS_STATUS for ground stations: sensors present / enabled / healthy (proximity = sonar ring,
+     * motor outputs = drive), and the link's receive errors as its drop rate proxy. */
+    {
+        uint32_t present = MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | (s_ring != 0 ? MAV_SYS_STATUS_SENSOR_PROXIMITY : 0u);
+        uint32_t healthy = present;
+        if ((s_out.failsafe_flags & BHV_FS_SONAR_FAULT) != 0u) {
+            healthy &= ~(uint32_t)MAV_SYS_STATUS_SENSOR_PROXIMITY;
+        }
+        if ((s_out.failsafe_flags & BHV_FS_ENCODER_FAULT) != 0u) {
+            healthy &= ~(uint32_t)MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS;
+        }
+        mavlink_msg_sys_status_pack(link_sysid(), link_compid(), &msg, present, present, healthy, 0u, 0u, -1, -1, 0u,
+                                    link_state()->rx_errors, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
+        send(&msg);
+    }
     /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
     {
         char name[10] = {'T', '_', 0, 0, 0, 0, 0, 0, 0, 0};

@@ -57,6 +57,8 @@ int32_t params_get(uint16_t index)
         return *(const uint16_t *)v;
     case PARAM_I16:
         return *(const int16_t *)v;
+    case PARAM_I8:
+        return *(const int8_t *)v;
     default:
         return *(const int32_t *)v;
     }
@@ -74,6 +76,9 @@ static void store(uint16_t index, int32_t value)
         break;
     case PARAM_I16:
         *(int16_t *)v = (int16_t)value;
+        break;
+    case PARAM_I8:
+        *(int8_t *)v = (int8_t)value;
         break;
     default:
         *(int32_t *)v = value;

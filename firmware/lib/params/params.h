@@ -26,7 +26,7 @@
 
 #define PARAMS_NAME_LEN 16u /* MAVLink param_id length; names shorter are NUL-terminated */
 
-typedef enum { PARAM_U8 = 0, PARAM_U16 = 1, PARAM_I16 = 2, PARAM_I32 = 3 } param_type_t;
+typedef enum { PARAM_U8 = 0, PARAM_U16 = 1, PARAM_I16 = 2, PARAM_I32 = 3, PARAM_I8 = 4 } param_type_t;
 
 typedef struct {
     char name[PARAMS_NAME_LEN + 1u];

@@ -40,6 +40,17 @@ static void test_params_get_reads_each_type_from_module_variables(void)
     TEST_ASSERT_EQUAL_UINT16(3u, params_count());
 }
 
+static void test_params_signed_byte_round_trips_negative_values(void)
+{
+    static int8_t dir;
+    static const PARAMS_ROM param_def_t ONE[] = {{"WALL_TIE_DIR", PARAM_I8, &dir, -1, 1}};
+    params_init(ONE, 1u);
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_set(0u, -1));
+    TEST_ASSERT_EQUAL_INT8(-1, dir);
+    TEST_ASSERT_EQUAL_INT32(-1, params_get(0u));
+    TEST_ASSERT_EQUAL(PARAMS_OUT_OF_RANGE, params_set(0u, -2));
+}
+
 static void test_params_find_by_name_without_terminator(void)
 {
     char id[16] = {'S', 'T', 'E', 'E', 'R', '_', 'T', 'R', 'I', 'M', '_', 'C', 'D', 'E', 'G', 0};
@@ -108,6 +119,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_params_get_reads_each_type_from_module_variables);
+    RUN_TEST(test_params_signed_byte_round_trips_negative_values);
     RUN_TEST(test_params_find_by_name_without_terminator);
     RUN_TEST(test_params_set_refuses_out_of_range_and_keeps_old_value);
     RUN_TEST(test_params_save_then_load_round_trips);
