@@ -158,11 +158,13 @@ def _planner_names() -> list[str]:
                        "help": "replace the scenario's goals by one goal (m, m, deg); negatives allowed"}),
         (("--out",), {"required": True, "help": "output directory"}),
         (("--no-plot",), {"action": "store_true", "help": "skip the PNG even if matplotlib is present"}),
+        (("--no-rrd",), {"action": "store_true", "help": "skip the rerun recordings (recording.rrd, link.rrd)"}),
         (("--quiet",), {"action": "store_true", "help": "no progress on stderr"}),
-        (("--firmware",), {"choices": ["ideal", "sil"], "default": "ideal",
+        (("--firmware",), {"choices": ["ideal", "sil", "avr"], "default": "ideal",
                            "help": "ideal: stand-in controller drives the model directly (default); sil: the real "
                                    "firmware (native SIL) between the host planner and the robot, with the radio link "
-                                   "model; also writes link.tlog and firmware.csv"}),
+                                   "model; also writes link.tlog and firmware.csv; avr: the same with the real "
+                                   "ATmega2560 ELF under simavr (slower: keep --duration short)"}),
     ],
     negative_ok=["--goal"],
 )
@@ -192,10 +194,12 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
             last[0] = pct
             print(f"\r[{sc.name}] t={t:6.1f}/{total:.0f} s  {pct:3d}%", end="", file=sys.stderr, flush=True)
 
-    if getattr(ns, "firmware", "ideal") == "sil":
-        from .sil.session import run_sil_scenario, write_sil_outputs
+    if getattr(ns, "firmware", "ideal") in ("sil", "avr"):
+        from .sil.session import SilConfig, run_sil_scenario, write_sil_outputs
 
-        sil = run_sil_scenario(sc, ns.planner, ns.seed, ns.duration, goal, progress=None if ns.quiet else progress)
+        cfg = SilConfig(firmware="avr" if ns.firmware == "avr" else "native")
+        sil = run_sil_scenario(sc, ns.planner, ns.seed, ns.duration, goal, config=cfg,
+                               progress=None if ns.quiet else progress)
         result = sil.run
         if not ns.quiet:
             print(file=sys.stderr)
@@ -205,11 +209,33 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         if not ns.quiet:
             print(file=sys.stderr)
         paths = write_outputs(result, ns.out, plot=not ns.no_plot)
+    if not getattr(ns, "no_rrd", False):
+        paths += _sim_recordings(sc, result, ns.out)
     m = result.metrics
     print(f"{sc.name}: {result.end_reason}, success={m.success}, time={m.time_s:.2f} s, path={m.path_length_m:.2f} m")
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _sim_recordings(sc: Any, result: Any, out: str) -> list:
+    """recording.rrd (true pose and path, goals, walls) and, for firmware-in-the-loop runs, link.rrd
+    (what the robot reported over the radio: odometry, sonar, behaviour layer) for `rerun`."""
+    from pathlib import Path
+
+    from .viz.recorder import VizUnavailable, record_run, record_tlog
+
+    out_dir = Path(out)
+    try:
+        goals = [(g.x_m, g.y_m) for g in getattr(sc, "goals", [])]
+        segs = getattr(getattr(sc, "world", None), "segments", None)
+        written = [record_run(result.trajectory, goals, out_dir / "recording.rrd", world_segments=segs)]
+        if (out_dir / "link.tlog").is_file():
+            written.append(record_tlog(out_dir / "link.tlog", out_dir / "link.rrd"))
+        return written
+    except VizUnavailable as e:
+        print(f"agnav sim: no recording ({e})", file=sys.stderr)
+        return []
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -165,3 +165,23 @@ def record_tlog(tlog: str | Path, rrd: str | Path) -> Path:
             rec.log_text(st.statustexts[-1].text, level="WARN" if m.severity <= 4 else "INFO")
     rec.close()
     return Path(rrd)
+
+
+def record_run(trajectory: np.ndarray, goals: Iterable[tuple[float, float]], rrd: str | Path,
+               world_segments: np.ndarray | None = None, app_id: str = "agnav-sim") -> Path:
+    """A simulator run as an .rrd: the true pose and path over time (``trajectory`` rows in
+    ``sim.runner.TRAJECTORY_COLUMNS`` order), the goals and, when given, the world's wall segments
+    ((n, 4) x0, y0, x1, y1 in m). Raises VizUnavailable when rerun-sdk is missing."""
+    rec = Recorder.to_file(rrd, app_id=app_id)
+    rr = rec.rr
+    if world_segments is not None and len(world_segments):
+        segs = [[[float(s[0]), float(s[1])], [float(s[2]), float(s[3])]] for s in np.asarray(world_segments)]
+        rec.rec.log("world/walls", rr.LineStrips2D(segs, colors=[(60, 60, 60)]), static=True)
+    for gx, gy in goals:
+        rec.log_goal(gx, gy)
+    for row in np.asarray(trajectory):
+        rec.set_time(float(row[0]))
+        rec.log_pose(PoseState(time_boot_s=float(row[0]), x_m=float(row[1]), y_m=float(row[2]), yaw_rad=float(row[3]),
+                               speed_m_s=float(row[4]), yaw_rate_rad_s=float(row[5]), rx_time_s=float(row[0])))
+    rec.close()
+    return Path(rrd)
