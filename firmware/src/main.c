@@ -463,6 +463,8 @@ int main(void)
     agnav_setup();
     for (;;) {
         agnav_loop_once();
+        uint32_t now = hal_time_us();
+        hal_idle_until(now + sched_idle_us(now)); /* sleep until the next task is due */
     }
 }
 #endif

@@ -59,6 +59,8 @@ static avr_irq_t *g_enc_a[MAX_ENC], *g_enc_b[MAX_ENC];
 static double g_sonar_mm = -1.0;
 static avr_irq_t *g_echo[MAX_SONAR];
 static int g_isr_stats;
+static uint64_t g_sleep_cycles; /* cycles the core spent asleep (idle) */
+static uint64_t g_sleep_calls;
 
 #define MAX_PROF 16
 typedef struct {
@@ -166,6 +168,14 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
     avr_cycle_timer_register(g_avr, rise + width, echo_fall, (void *)(uintptr_t)idx);
 }
 
+/* simavr's default sleep callback usleep()s to keep a sleeping core in wall-clock pace; the
+ * harness wants simulated time only, so sleeping cycles are skipped at once. */
+static void sleep_skip(avr_t *avr, avr_cycle_count_t how_long)
+{
+    (void)avr;
+    (void)how_long;
+}
+
 static uint16_t sp_now(void) { return (uint16_t)(g_avr->data[0x5D] | (g_avr->data[0x5E] << 8)); }
 
 static void on_uart_byte(struct avr_irq_t *irq, uint32_t value, void *param)
@@ -262,6 +272,7 @@ int main(int argc, char **argv)
     }
     avr_init(g_avr);
     g_avr->log = 0;
+    g_avr->sleep = sleep_skip;
     avr_load_firmware(g_avr, &fw);
     g_avr->frequency = freq;
 
@@ -304,7 +315,12 @@ int main(int argc, char **argv)
     uint16_t isr_sp = 0;
     int in_isr = 0;
     while (state != cpu_Done && state != cpu_Crashed) {
+        uint64_t before = g_avr->cycle;
         state = avr_run(g_avr);
+        if (state == cpu_Sleeping) {
+            g_sleep_cycles += g_avr->cycle - before;
+            g_sleep_calls++;
+        }
         if (g_isr_stats) {
             if (!in_isr && g_avr->pc == PCINT2_VECTOR_BYTE_ADDR) {
                 in_isr = 1;
@@ -349,6 +365,8 @@ int main(int argc, char **argv)
         }
         fprintf(stderr, "\n");
     }
+    fprintf(stderr, "sleep_fraction=%.3f sleep_steps=%llu\n", g_avr->cycle ? (double)g_sleep_cycles / (double)g_avr->cycle : 0.0,
+            (unsigned long long)g_sleep_calls);
     if (g_isr_stats) {
         fprintf(stderr, "encoder_isr_cycles n=%llu min=%llu mean=%.1f max=%llu\n", (unsigned long long)isr_n,
                 (unsigned long long)(isr_n ? isr_min : 0), isr_n ? (double)isr_sum / (double)isr_n : 0.0,

@@ -28,6 +28,10 @@ uint32_t hal_time_us(void);
 uint32_t hal_time_ms(void);
 /* Busy-wait, used only for the 10 us sonar trigger pulse. */
 void hal_delay_us(uint16_t us);
+/* Sleep until about t_us (hal_time_us() clock) or the next interrupt, whichever comes
+ * first; returns at once when t_us is not in the future. The main loop calls it when no
+ * task is due: it saves power on the board and lets simulators skip idle cycles. */
+void hal_idle_until(uint32_t t_us);
 
 /* ---- critical sections ------------------------------------------------ */
 #if defined(__AVR__)

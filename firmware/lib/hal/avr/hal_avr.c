@@ -7,6 +7,7 @@
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
+#include <avr/sleep.h>
 #include <avr/wdt.h>
 #include <util/delay.h>
 
@@ -49,6 +50,32 @@ void hal_delay_us(uint16_t us)
     while (us-- > 0u) {
         _delay_us(1); /* cycle-counted; the 4 us timer is too coarse for a 10 us pulse */
     }
+}
+
+/* Timer5 compare A wakes the idle sleep; the ISR only has to exist. */
+ISR(TIMER5_COMPA_vect) {}
+
+void hal_idle_until(uint32_t t_us)
+{
+    cli();
+    uint32_t now = ticks_now() << 2;
+    int32_t wait_us = (int32_t)(t_us - now);
+    if (wait_us <= 8) { /* nothing worth sleeping for */
+        sei();
+        return;
+    }
+    if (wait_us > 200000L) {
+        wait_us = 200000L; /* within one Timer5 period (262 ms) */
+    }
+    OCR5A = (uint16_t)(TCNT5 + (uint16_t)((uint32_t)wait_us >> 2));
+    TIFR5 = (uint8_t)(1u << OCF5A);
+    TIMSK5 |= (uint8_t)(1u << OCIE5A);
+    set_sleep_mode(SLEEP_MODE_IDLE); /* timers, UART and pin changes keep running */
+    sleep_enable();
+    sei();
+    sleep_cpu(); /* the instruction after sei always runs first, so no wake-up is lost */
+    sleep_disable();
+    TIMSK5 &= (uint8_t)~(1u << OCIE5A);
 }
 
 hal_irq_state_t hal_irq_save(void)

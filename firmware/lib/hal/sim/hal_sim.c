@@ -71,6 +71,8 @@ void hal_init(void) { /* state is set by sim_reset() */ }
 uint32_t hal_time_us(void) { return sim.now_us; }
 uint32_t hal_time_ms(void) { return sim.now_us / 1000u; }
 void hal_delay_us(uint16_t us) { sim.now_us += us; }
+/* The world owns time in the simulation: idling is the caller's stepping, not ours. */
+void hal_idle_until(uint32_t t_us) { (void)t_us; }
 
 void sim_time_set_us(uint32_t t_us) { sim.now_us = t_us; }
 void sim_time_advance_us(uint32_t dt_us) { sim.now_us += dt_us; }

@@ -68,6 +68,14 @@ uint32_t hal_time_us(void)
 
 uint32_t hal_time_ms(void) { return s_ms; }
 
+/* SysTick interrupts every millisecond wake the core; finer waits just return. */
+void hal_idle_until(uint32_t t_us)
+{
+    if ((int32_t)(t_us - hal_time_us()) > 1000) {
+        __asm__ volatile("wfi");
+    }
+}
+
 void hal_delay_us(uint16_t us)
 {
     uint32_t start = hal_time_us();
