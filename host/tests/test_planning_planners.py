@@ -59,11 +59,7 @@ closed = true
 """
 
 
-KNOWN_WALL_FAILURES = {"subsumption": "sonar-only reactive layers stall in front of a 2.4 m wall (see docs/planning.md)"}
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN_WALL_FAILURES[n], strict=True))
-                                  if n in KNOWN_WALL_FAILURES else n for n in ISSUE_NAMES])
+@pytest.mark.parametrize("name", ISSUE_NAMES)
 def test_avoids_a_wall_ahead(name):
     """Closed loop in the simulator: a wall across the straight line to the goal. The planner must
     get round it without touching it and reach the goal."""
@@ -85,8 +81,8 @@ def test_subsumption_stops_or_turns_at_a_sonar_wall():
 
 
 def test_subsumption_canyon_timer_holds_the_turn_direction():
-    p = make_planner("subsumption", SPEC)
-    p.params.__class__  # frozen dataclass: defaults mirror BEHAVIOUR_PARAMS_DEFAULT
+    # wall_goal_side_rad = 0: exactly the firmware's layer (BEHAVIOUR_PARAMS_DEFAULT)
+    p = make_planner("subsumption", SPEC, {"wall_goal_side_rad": 0.0})
     left_near = np.full(12, 3.0)
     left_near[0] = 0.8
     left_near[[1, 2]] = 0.9  # left nearer -> turn right
@@ -127,3 +123,17 @@ def test_step_is_fast_enough_on_a_full_scan():
             p.step(obs)
         per = (time.perf_counter() - t) / 20
         assert per < 2e-3, f"{name}: {per * 1e3:.2f} ms per step"
+
+
+def test_subsumption_blocked_turn_prefers_the_goal_side_and_agreement_ends_a_held_timer():
+    """Host extension (wall_goal_side_rad > 0): with the front blocked the turn goes to the goal's
+    side; when the wall cue and the goal agree, a canyon timer held from an earlier obstacle is
+    dropped instead of forcing the old direction (the corridor's plate-then-wall case)."""
+    p = make_planner("subsumption", SPEC)
+    left_near = np.full(12, 3.0)
+    left_near[0] = 0.8
+    left_near[[1, 2]] = 0.9  # left nearer -> the wall cue says right ...
+    cmd = p.step(obs_with(None, (1.0, 3.0), sonar_frame(left_near), t=0.0))  # ... the goal is 72 deg left
+    assert cmd.yaw_rate_rad_s > 0.0  # goal side wins, left timer started
+    cmd = p.step(obs_with(None, (1.0, -3.0), sonar_frame(left_near), t=0.5))  # goal now right: both say right
+    assert cmd.yaw_rate_rad_s < 0.0 and p.reason.name != "CANYON_TIMER"

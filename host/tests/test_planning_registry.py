@@ -62,14 +62,7 @@ def test_astar_is_bounded():
         g.plan((0.0, 0.0), (3.0, 0.0), 0.3, margin_cells=10)
 
 
-KNOWN = {
-    "apf": "APF (ref 001) assumes obstacle-free lines between waypoints; it stalls at the corridor's plates",
-    "subsumption": "sonar-only firmware layers wander in the 3 m corridor (see docs/planning.md)",
-}
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=KNOWN[n], strict=True)) if n in KNOWN else n
-                                  for n in ISSUE_NAMES])
+@pytest.mark.parametrize("name", ISSUE_NAMES)
 def test_every_planner_reaches_the_goal_on_corridor_obstacles(name):
     r = run_scenario(load_scenario("corridor_obstacles"), name, seed=0)
     end = r.trajectory[-1]

@@ -8,16 +8,21 @@ With d the distance and alpha the bearing of the current waypoint (ref 001 eqs. 
     r = Ka alpha + krep / d_obs               |alpha| <  alpha_max (eq. 12)
     r = +-r_max and u = 0                     |alpha| >= alpha_max (turn on the spot, eq. 14)
 
-d_obs is the clearance to the nearest laser return within ``side_span_rad`` of the nose, and is
-taken as infinite beyond ``d_obs_threshold_m`` (eq. 11), so the repulsive term vanishes; the term
-turns the robot away from that return's side (ref 001 applies it to obstacles beside the robot; a
-return inside the front cone pushes towards the more open side of the front, and while the front
-is obstructed that side is kept and the waypoint's pull is added to the turn instead of fighting it,
-so the robot contours the obstacle rather than settling in front of it; contouring ends when the
-straight way to the waypoint is free again; a second passive-safety stop while contouring switches
-to the other side). The speed is also
-scaled down as the clearance ahead shrinks, so that passive safety stays the exception. The sign of the repulsion and the waypoint's
-choice of side are our reading: the paper gives krep / d_obs as a magnitude only.
+d_obs is the clearance to the nearest laser return beside the robot (outside the front cone, within
+``side_span_rad``), taken as infinite beyond ``d_obs_threshold_m`` (eq. 11), so the repulsion only
+keeps a distance from what is on the sides, as ref 001 assumes; the term turns the robot away from
+that return's side (the paper gives krep / d_obs as a magnitude, the sign is our reading).
+
+Ref 001 says the APF "avoids obstacles in its path by contouring them" but assumes the legs between
+waypoints are free. For a leg that is not, the attraction acts from a shifted bearing: when a disc
+of radius + ``contour_margin_m`` cannot travel ``min(d, contour_look_m)`` straight at the waypoint,
+alpha in eqs. 12-14 is replaced by the free direction (5 deg candidates, +-150 deg) nearest to the
+waypoint's bearing, staying on the side already being contoured while that side has a way; when the
+straight way is free again alpha is the waypoint's bearing. Eqs. 12-14 themselves (including the
+turn on the spot for |alpha| >= alpha_max) are unchanged. The speed is also scaled down as the
+clearance ahead shrinks, so that passive safety stays the exception. ``d_min`` (ref 001: 0.3 m, its
+waypoint tolerance) is lowered to 0.8 x the mission waypoint's own tolerance when that is tighter,
+otherwise the robot would stop short of a 0.25 m goal for ever.
 
 A return inside the front cone (``front_cone_rad``) closer than ``stop_m`` while driving forward
 starts passive motion safety (ref 001, mirrored from the firmware's avoid layer): stop for
@@ -35,7 +40,7 @@ from enum import IntEnum
 import numpy as np
 
 from ..types import DriveCommand, Observation
-from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
+from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view, norm_angle_rad_arr
 
 __all__ = ["ApfParams", "ApfPlanner", "apf_linear", "apf_angular", "SafetyState"]
 
@@ -65,6 +70,9 @@ class ApfParams:
     backoff_m: float = 0.05
     backoff_speed_m_s: float = 0.1
     wait_s: float = 1.0
+    contour_look_m: float = 1.0
+    contour_margin_m: float = 0.08
+    contour_side_cost_rad: float = math.radians(60.0)
 
     def __post_init__(self) -> None:
         if not (self.katt > 0 and self.d_min_m >= 0 and self.ka > 0 and self.krep >= 0 and self.d_obs_threshold_m > 0):
@@ -105,12 +113,12 @@ class ApfPlanner:
         self.umax = p.umax_m_s if p.umax_m_s is not None else spec.max_speed_m_s
         self.d_max = p.d_max_m if p.d_max_m is not None else math.sqrt(2.0 * self.umax / p.katt)
         self.r_max = p.r_max_rad_s if p.r_max_rad_s is not None else 0.8 * spec.max_yaw_rate_rad_s
+        self._cand = np.radians(np.arange(-150.0, 150.1, 5.0))
         self.reset()
 
     def reset(self) -> None:
         self.state = SafetyState.CLEAR
         self._contour = 0.0
-        self._stops_in_contour = 0
         self._t_state = 0.0
         self._backed = 0.0
 
@@ -119,49 +127,55 @@ class ApfPlanner:
         dt = spec.control_dt_s
         view = local_view(obs, spec)
         d, alpha = goal_in_robot_frame(obs)
-        # nearest return within the side span -> d_obs and the side to turn to
+        # side obstacles -> d_obs and the side to turn away from (ref 001: repulsion from the sides)
         d_obs, sign = math.inf, 0.0
-        front = False
         front_clr = math.inf
         if len(view.range_m):
             clr = view.range_m - spec.radius_m
             b = view.bearing_rad
-            m = np.abs(b) <= p.side_span_rad
+            m = (np.abs(b) <= p.side_span_rad) & (np.abs(b) > p.front_cone_rad)
             if m.any():
                 i = int(np.argmin(np.where(m, clr, np.inf)))
                 if clr[i] < p.d_obs_threshold_m:
                     d_obs = float(clr[i])
-                    bi = float(b[i])
-                    if abs(bi) > p.front_cone_rad:
-                        sign = -1.0 if bi > 0 else 1.0
-                    else:  # ahead: turn to the more open side of the front, and keep that side
-                        if self._contour == 0.0:
-                            self._contour = 1.0 if view.sector_min(0.0, 1.2, 9.0) >= view.sector_min(-1.2, 0.0, 9.0) else -1.0
-                        sign = self._contour
+                    sign = -1.0 if b[i] > 0 else 1.0
             cone = np.abs(b) <= p.front_cone_rad
             front_clr = float(clr[cone].min()) if cone.any() else math.inf
-            front = front_clr < p.stop_m
-        if self._contour != 0.0:  # contour until the straight way to the waypoint is free
-            need = min(d, 1.5)
-            if float(free_distances_m(view.xy, np.array([alpha]), spec.radius_m + 0.05, need)[0]) >= need - 1e-6:
-                self._contour = 0.0
-        u = apf_linear(d, p.katt, self.umax, p.d_min_m, self.d_max)
-        if self._contour != 0.0:
-            # contouring: the waypoint's pull must not fight the turn away from an obstacle ahead, and
-            # no turning on the spot back towards it until the way is free
-            spin = False
-            if front_clr < p.d_obs_threshold_m:
-                r = self._contour * min(self.r_max, p.ka * abs(alpha) + p.krep / max(d_obs, 1e-3))
-            else:
-                r = 0.0 if math.isinf(d_obs) else sign * min(self.r_max, p.krep / max(d_obs, 1e-3))
-            u = self.umax * min(1.0, max(0.0, front_clr - p.stop_m) / p.d_obs_threshold_m + 0.2)
+        front = front_clr < p.stop_m
+        # contouring (ref 001: "APF allows the robot to avoid obstacles in its path by contouring them"):
+        # when the straight way to the waypoint is blocked, the attraction acts from the free direction
+        # nearest to the waypoint's bearing on the side being contoured
+        alpha_eff = alpha
+        need = min(d, p.contour_look_m)
+        half = spec.radius_m + p.contour_margin_m
+        if float(free_distances_m(view.xy, np.array([alpha]), half, need)[0]) >= need - 1e-6:
+            self._contour = 0.0
         else:
-            r, spin = apf_angular(alpha, d_obs, sign, p.ka, p.krep, p.alpha_max_rad, self.r_max)
+            cand = self._cand
+            free = free_distances_m(view.xy, cand, half, need)
+            ok = free >= need - 1e-6
+            if not ok.any():
+                ok = free >= 0.8 * float(free.max())
+            rel = norm_angle_rad_arr(cand - alpha)
+            cost = np.abs(rel)
+            if self._contour != 0.0:  # keep the side being contoured while it has a way
+                same = ok & ((np.sign(rel) == self._contour) | (rel == 0.0))
+                if same.any():
+                    ok = same
+            k = int(np.argmin(np.where(ok, cost, np.inf)))
+            alpha_eff = float(cand[k])
+            if self._contour == 0.0 or not (np.sign(rel[k]) == self._contour):
+                self._contour = 1.0 if rel[k] >= 0 else -1.0
+        # d_min is ref 001's waypoint tolerance (0.3 m); a mission with a tighter tolerance gets that
+        tol = getattr(obs.goal, "tolerance_m", None)
+        d_min = min(p.d_min_m, 0.8 * tol) if tol else p.d_min_m
+        u = apf_linear(d, p.katt, self.umax, d_min, self.d_max)
+        r, spin = apf_angular(alpha_eff, d_obs, sign, p.ka, p.krep, p.alpha_max_rad, self.r_max)
         if spin:
             u = 0.0
-        elif self._contour == 0.0:  # slow down towards an obstacle ahead so that passive safety is the exception
-            u *= max(0.0, math.cos(alpha)) * min(1.0, max(0.0, front_clr - p.stop_m) / p.d_obs_threshold_m + 0.2,
-                                                 (d_obs if d_obs < math.inf else 9.0) / p.d_obs_threshold_m + 0.2)
+        else:  # slow down towards an obstacle ahead so that passive safety is the exception
+            u *= max(0.0, math.cos(alpha_eff)) * min(1.0, max(0.0, front_clr - p.stop_m) / p.d_obs_threshold_m + 0.2,
+                                                     (d_obs if d_obs < math.inf else 9.0) / p.d_obs_threshold_m + 0.2)
         # passive motion safety
         forward = u > 0.0 or obs.speed_m_s > 0.02
         self._t_state += dt
@@ -171,9 +185,6 @@ class ApfPlanner:
             if not (front and forward):
                 return drive_command(spec, u, r)
             self.state, self._t_state = SafetyState.STOP, 0.0
-            self._stops_in_contour = self._stops_in_contour + 1 if self._contour != 0.0 else 0
-            if self._stops_in_contour >= 2:  # this side leads into another obstacle: contour the other way
-                self._contour, self._stops_in_contour = -self._contour, 0
         if self.state == SafetyState.STOP and self._t_state >= p.stop_s and abs(obs.speed_m_s) <= 0.02:
             self.state, self._t_state, self._backed = SafetyState.BACKOFF, 0.0, 0.0
         if self.state == SafetyState.BACKOFF:

@@ -16,6 +16,18 @@ the simulator nothing feeds them:
   to 0 at ``Imax``. Front blocked: turn at ``wall_turn_steer`` away from the nearer side; canyon
   timers hold a chosen turn direction for ``wall_canyon_s`` after the last blocked tick. Front
   open: proportional steer away from the nearer side with a dead band.
+
+  Host-only extension (``wall_goal_side_rad``, 0 gives exactly the firmware): with the front
+  blocked and the goal more than ``wall_goal_side_rad`` (20 deg) off the nose, the turn goes to the
+  goal's side unless that side is already inside the Imax horizon; and when that goal cue and the
+  wall cue (away from the nearer side) agree, a canyon timer still held from an earlier obstacle is
+  dropped instead of flipping the turn. Without it the firmware layer, in the 3 m corridor of ref
+  002, keeps the left turn of plate 1 while the upper wall blocks the 1.5 m engage horizon and turns
+  round until it follows the walls back to the start (the timer is restarted every blocked tick,
+  which is what the dead-end canyon needs); ref 002 leaves the choice of turn direction to "the
+  programming parameters" and names automatic selection as future work, so this is our addition.
+  The canyon case is unchanged: there the goal is dead ahead (no goal cue) or the cues disagree
+  while the robot turns round, and the timer holds as before.
   ``Imax = 1 / (Nmax vmax dt + R0)`` and ``Imin = 1 / (Nmin vmax dt + R0)`` (reconstructed in the
   firmware; kept as is).
 * avoid obstacle (passive motion safety): a valid echo closer than ``avoid_stop`` in the front cone
@@ -84,6 +96,10 @@ class SubsumptionParams:
     wall_turn_steer_rad: float = math.radians(20.0)
     wall_tie_dir: int = -1
     wall_canyon_s: float = 1.5
+    # host only (0 = exactly the firmware): with the front blocked, turn to the goal's side when the goal
+    # is more than this off the nose, and let a turn on which the wall and the goal agree end a canyon
+    # timer held from an earlier obstacle (see the module docstring)
+    wall_goal_side_rad: float = math.radians(20.0)
     goal_speed_m_s: float = 0.4
     goal_min_speed_m_s: float = 0.08
     goal_slow_m: float = 1.0
@@ -182,11 +198,22 @@ class SubsumptionPlanner:
         reason = Reason.WALL_LEFT if l >= r else Reason.WALL_RIGHT
         timers = p.wall_canyon_s > 0
         if blocked:
-            d = -1 if diff > p.wall_deadband_per_m else 1 if diff < -p.wall_deadband_per_m else (1 if p.wall_tie_dir >= 0 else -1)
+            # firmware: away from the nearer side, ties to wall_tie_dir
+            d_wall = -1 if diff > p.wall_deadband_per_m else 1 if diff < -p.wall_deadband_per_m else 0
+            # host extension (wall_goal_side_rad > 0): towards the goal's side when the goal is off the
+            # nose and that side is not already inside the Imax horizon
+            d_goal = 0
+            if p.wall_goal_side_rad > 0 and abs(err) > p.wall_goal_side_rad and (l if err > 0 else r) < self.imax:
+                d_goal = 1 if err > 0 else -1
+            d = d_goal or d_wall or (1 if p.wall_tie_dir >= 0 else -1)
+            # both cues agree: a new situation, not the sway of a canyon; the held direction is dropped
+            agree = d_wall != 0 and d_wall == d_goal
             if timers:
                 want = 0 if d > 0 else 1
                 other = 1 - want
-                if self._timer_end[other] > t:
+                if agree:
+                    self._timer_end[other] = -math.inf
+                elif self._timer_end[other] > t:
                     d, want, reason = -d, other, Reason.CANYON_TIMER
                 self._timer_end[want] = t + p.wall_canyon_s
             steer = d * p.wall_turn_steer_rad
