@@ -1,4 +1,9 @@
-"""ctypes binding of the native SIL library (hil/sil/sil_api.h).
+"""ctypes binding of the SIL libraries (the C API of hil/sil/sil_api.h).
+
+Two backends implement that API: ``native`` (build/sil/libagnav_sil.so: the firmware built for
+the PC against the simulated HAL) and ``avr`` (build/sil/libagnav_avr_sil.so: libsimavr running
+the real ATmega2560 ELF at 16 MHz, hil/simavr/avr_sil.c). ``Firmware(backend="avr")`` picks the
+second (both are built on demand).
 
 Each :class:`Firmware` loads its own private copy of ``libagnav_sil.so`` (copied to a temporary
 file, opened, then unlinked), so every instance is a pristine power-on: the firmware's file-scope
@@ -19,7 +24,9 @@ import numpy as np
 
 from .build import LIB_PATH, build_library
 
-__all__ = ["Firmware", "Outputs", "PARAMS_RESULT"]
+__all__ = ["Firmware", "Outputs", "PARAMS_RESULT", "BACKENDS"]
+
+BACKENDS = ("native", "avr")
 
 PARAMS_RESULT = {0: "ok", -1: "unknown", -2: "out of range", -3: "storage"}
 
@@ -73,16 +80,45 @@ _SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_eeprom_write": (None, [C.c_uint32, C.c_char_p, C.c_uint32]),
 }
 
+_AVR_SIGS: dict[str, tuple[object, list[object]]] = {
+    "sil_avr_set_elf": (None, [C.c_char_p]),
+    "sil_avr_param_count": (C.c_int, []),
+    "sil_avr_param_name": (C.c_char_p, [C.c_int]),
+    "sil_avr_cycles": (C.c_uint64, []),
+    "sil_avr_instructions": (C.c_uint64, []),
+    "sil_avr_state": (C.c_int, []),
+    "sil_avr_uart_rx_pending": (C.c_uint32, []),
+    "sil_avr_resets": (C.c_uint32, []),
+}
+
 
 class Firmware:
     """One simulated robot controller running the real firmware.
 
     ``params`` (name -> value) are stored to the simulated EEPROM and the firmware is rebooted
     with them before any time passes, as if they had been saved on the robot before the run.
+
+    ``backend``: ``"native"`` (default) or ``"avr"`` (the real AVR ELF under simavr; ``elf``
+    overrides the ELF path, default the PlatformIO build, rebuilt when stale). On the AVR the
+    boot itself takes simulated time (~5 ms: C start-up, EEPROM loads), ``tick_us`` is ignored
+    (the real main loop runs free) and ``loop_passes`` is 0.
     """
 
-    def __init__(self, params: dict[str, int] | None = None, lib_path: Path | None = None, tick_us: int = 100) -> None:
-        src = Path(lib_path) if lib_path is not None else build_library()
+    def __init__(self, params: dict[str, int] | None = None, lib_path: Path | None = None, tick_us: int = 100,
+                 backend: str = "native", elf: str | Path | None = None) -> None:
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown SIL backend {backend!r}; known: {', '.join(BACKENDS)}")
+        self.backend = backend
+        if backend == "avr":
+            from .avr_build import build_avr_elf, build_avr_library
+
+            src = Path(lib_path) if lib_path is not None else build_avr_library()
+            self.elf = Path(elf) if elf is not None else build_avr_elf()
+            if not self.elf.exists():
+                raise FileNotFoundError(f"AVR firmware ELF not found: {self.elf}")
+        else:
+            src = Path(lib_path) if lib_path is not None else build_library()
+            self.elf = None
         fd, tmp = tempfile.mkstemp(prefix="agnav_sil_", suffix=".so")
         os.close(fd)
         try:
@@ -94,11 +130,19 @@ class Firmware:
             f = getattr(self._lib, name)
             f.restype = res
             f.argtypes = args
+        if backend == "avr":
+            for name, (res, args) in _AVR_SIGS.items():
+                f = getattr(self._lib, name)
+                f.restype = res
+                f.argtypes = args
+            self._lib.sil_avr_set_elf(str(self.elf).encode())
         self._buf = C.create_string_buffer(65536)
         self._trig_idx = (C.c_uint8 * 256)()
         self._trig_t = (C.c_uint64 * 256)()
         self._out = _COutputs()
         self._lib.sil_reset()
+        if backend == "avr" and self._lib.sil_avr_param_count() < 0:
+            raise RuntimeError(f"AVR SIL: no PARAMS table in {self.elf}")
         if params:
             for k, v in params.items():
                 self.param_set(k, v)
@@ -209,6 +253,30 @@ class Firmware:
         if self._lib.sil_param_get(name.encode(), C.byref(v)) != 0:
             raise KeyError(name)
         return int(v.value)
+
+    # ---- AVR backend ---------------------------------------------------------------------------------------
+    @property
+    def cycles(self) -> int:
+        """CPU cycles since power-on (AVR backend; native: time_us x 16 for comparisons)."""
+        if self.backend == "avr":
+            return int(self._lib.sil_avr_cycles())
+        return self.time_us * 16
+
+    def avr_param_names(self) -> list[str]:
+        """The parameter table as found in the AVR ELF (flash), in table order."""
+        if self.backend != "avr":
+            raise RuntimeError("avr_param_names: AVR backend only")
+        return [self._lib.sil_avr_param_name(i).decode() for i in range(self._lib.sil_avr_param_count())]
+
+    @property
+    def core_state(self) -> int:
+        """0 while the AVR core runs; simavr's cpu state once it crashed or stopped (native: 0)."""
+        return int(self._lib.sil_avr_state()) if self.backend == "avr" else 0
+
+    @property
+    def resets(self) -> int:
+        """Core resets since power-on other than sil_reboot() (AVR: watchdog; native: 0)."""
+        return int(self._lib.sil_avr_resets()) if self.backend == "avr" else 0
 
     def eeprom(self) -> bytes:
         n = int(self._lib.sil_eeprom_size())

@@ -1,4 +1,5 @@
-"""``agnav sil``: serve the native SIL firmware to a ground station (TCP, SITL style, or a pty)."""
+"""``agnav sil``: serve the SIL firmware (native build, or the real AVR ELF under simavr with
+``--firmware avr``) to a ground station (TCP, SITL style, or a pty)."""
 
 from __future__ import annotations
 
@@ -32,6 +33,9 @@ def _param(text: str) -> tuple[str, int]:
         (("--param",), {"type": _param, "action": "append", "default": [], "metavar": "NAME=VALUE",
                         "help": "firmware parameter stored in EEPROM before boot (repeatable), e.g. LINK_TIMEOUT_MS=2000"}),
         (("--tlog",), {"default": None, "help": "write the radio traffic (both ways) to this .tlog"}),
+        (("--firmware",), {"choices": ["native", "avr"], "default": "native",
+                           "help": "native: the firmware built for the PC (default); avr: the real ATmega2560 ELF "
+                                   "under simavr at 16 MHz"}),
     ],
 )
 def _cmd_sil(ns: argparse.Namespace) -> int:
@@ -53,7 +57,7 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
     if tcp is None and not ns.pty:
         print("agnav sil: nothing to serve on (--tcp none and no --pty)", file=sys.stderr)
         return 2
-    cfg = SilConfig(firmware_params=tuple(ns.param))
+    cfg = SilConfig(firmware_params=tuple(ns.param), firmware=ns.firmware)
     try:
         s = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
                                    tlog_path=ns.tlog, config=cfg))

@@ -25,6 +25,8 @@ import numpy as np
 
 __all__ = ["LinkParams", "MavFramer", "LinkChannel", "Tlog", "split_frames"]
 
+_U64 = struct.Struct(">Q")  # .tlog record time stamp
+
 
 @dataclass(frozen=True)
 class LinkParams:
@@ -110,22 +112,27 @@ class LinkChannel:
         if not data:
             return
         p = self.params
+        bps = p.bytes_per_s
+        latency_us = int(round(p.latency_s * 1e6))
+        tlog = self._tlog
         for frame in self._framer.feed(data):
             self.frames_sent += 1
-            if self._backlog_bytes(t_us) + len(frame) > p.buffer_bytes:
+            n = len(frame)
+            busy = self._busy_until_us
+            backlog = 0.0 if p.baud <= 0 else max(0, busy - t_us) * bps * 1e-6  # as _backlog_bytes
+            if backlog + n > p.buffer_bytes:
                 self.frames_dropped += 1
                 continue
-            start = max(t_us, self._busy_until_us)
-            dur = 0 if p.baud <= 0 else int(round(len(frame) * 1e6 / p.bytes_per_s))
-            self._busy_until_us = start + dur
+            start = t_us if t_us > busy else busy
+            busy = self._busy_until_us = start + (0 if p.baud <= 0 else int(round(n * 1e6 / bps)))
             lost = self.down or (p.loss > 0.0 and self._rng.random() < p.loss)
-            if self._tlog is not None:
-                self._tlog.write(start, frame)  # it went on air (lost or not)
+            if tlog is not None:
+                tlog.write(start, frame)  # it went on air (lost or not)
             if lost:
                 self.frames_lost += 1
                 continue
-            self.bytes_sent += len(frame)
-            heapq.heappush(self._queue, (self._busy_until_us + int(round(p.latency_s * 1e6)), self._seq, frame))
+            self.bytes_sent += n
+            heapq.heappush(self._queue, (busy + latency_us, self._seq, frame))
             self._seq += 1
 
     def next_delivery_us(self) -> int | None:
@@ -149,13 +156,13 @@ class Tlog:
         self.frames = 0
 
     def write(self, t_us: int, frame: bytes) -> None:
-        rec = struct.pack(">Q", t_us) + frame
         self.frames += 1
-        if self._f is not None:
-            self._f.write(rec)
+        if self._mem is not None:
+            self._mem += _U64.pack(t_us)
+            self._mem += frame
         else:
-            assert self._mem is not None
-            self._mem += rec
+            assert self._f is not None
+            self._f.write(_U64.pack(t_us) + frame)
 
     def getvalue(self) -> bytes:
         return bytes(self._mem) if self._mem is not None else b""

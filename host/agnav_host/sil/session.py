@@ -17,6 +17,7 @@ byte-identical telemetry logs.
 
 from __future__ import annotations
 
+import ctypes as C
 import json
 import math
 from dataclasses import dataclass, field, replace
@@ -31,7 +32,7 @@ from ..sim.controller import GoalSeekParams, make_standin
 from ..sim.robots import DiffDrive
 from ..sim.scenario import Scenario
 from ..types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
-from .binding import Firmware
+from .binding import Firmware, _COutputs
 from .host import HostEndpoint
 from .link import LinkChannel, LinkParams, Tlog
 from .plant import Plant, PlantConfig
@@ -40,6 +41,7 @@ __all__ = ["SilConfig", "SilSession", "HostLogic", "PlannerHost", "SilRunResult"
            "write_sil_outputs", "FIRMWARE_CSV_COLUMNS"]
 
 FIRMWARE_CSV_COLUMNS = ("t_s", "time_boot_ms", "layer", "reason", "failsafe_flags", "steer_cdeg", "speed_mm_s")
+_ACTUATOR_BYTES = _COutputs.wdt_kicks.offset  # servo_us[2], duty[2], reverse[2]: what the plant reads
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,8 @@ class SilConfig:
     plant: PlantConfig = field(default_factory=PlantConfig)
     firmware_params: tuple[tuple[str, int], ...] = ()  # extra EEPROM parameters (after the robot profile)
     record_outputs: bool = False  # keep (t_us, Outputs) after every step
+    firmware: str = "native"  # SIL backend: "native" (firmware built for the PC) or "avr" (real ELF under simavr)
+    firmware_elf: str | None = None  # avr: another ELF than the PlatformIO build (e.g. a variant under test)
 
 
 class HostLogic(Protocol):
@@ -70,7 +74,7 @@ class SilSession:
         self.plant = Plant(sc, rng_robot, rng_sonar, cfg.plant)
         params = dict(self.plant.firmware_params())
         params.update(dict(cfg.firmware_params))
-        self.fw = Firmware(params, tick_us=cfg.tick_us)
+        self.fw = Firmware(params, tick_us=cfg.tick_us, backend=cfg.firmware, elf=cfg.firmware_elf)
         self.tlog = Tlog()
         self.up = LinkChannel(cfg.uplink, rng_up, "up", self.tlog)
         self.down = LinkChannel(cfg.downlink, rng_down, "down", self.tlog)
@@ -83,6 +87,15 @@ class SilSession:
         self.outputs_log: list[tuple[int, object]] = []
         self.triggers = 0
         self.on_downlink: Callable[[int, bytes], None] | None = None  # raw bytes the radio delivered to the host
+        # Per-step calls straight into the C API behind self.fw (hil/sil/sil_api.h, every backend):
+        # the outputs struct read without building an Outputs object unless an actuator changed,
+        # and the UART drained without copying the whole receive buffer.
+        lib = getattr(self.fw, "_lib", None)
+        self._c_outputs = getattr(lib, "sil_outputs", None)
+        self._c_uart_read = getattr(lib, "sil_uart_read", None)
+        self._outs = _COutputs()
+        self._act: bytes | None = None
+        self._rx = C.create_string_buffer(1 << 16)
 
     @property
     def t_s(self) -> float:
@@ -128,28 +141,57 @@ class SilSession:
             raise RuntimeError(f"SIL provisioning: no answer from the firmware in {timeout_s} s (acks {acked})")
 
     # ---- one world step ------------------------------------------------------------------------------------
+    def _actuators_changed(self) -> bool:
+        """True when the firmware's actuator outputs (servo pulses, duty, direction lines) differ from
+        the last step's; the plant takes nothing else from the outputs (the watchdog count in them
+        changes every step)."""
+        if self._c_outputs is None:
+            return True
+        o = self._outs
+        self._c_outputs(o)
+        act = bytes(o)[:_ACTUATOR_BYTES]
+        if act == self._act:
+            return False
+        self._act = act
+        return True
+
+    def _uart_read(self) -> bytes:
+        rd = self._c_uart_read
+        if rd is None:
+            return self.fw.uart_read()
+        buf, size = self._rx, len(self._rx)
+        n = rd(buf, size)
+        out = C.string_at(buf, n) if n else b""
+        while n == size:
+            n = rd(buf, size)
+            out += C.string_at(buf, n)
+        return out
+
     def _advance(self, hold_still: bool = False) -> None:
-        fw, plant = self.fw, self.plant
+        fw, plant, up = self.fw, self.plant, self.up
         t0 = self.t_us
         t1 = t0 + self.dt_us
-        out = fw.outputs()
-        plant.set_outputs(out)
+        if self._actuators_changed():
+            plant.set_outputs(fw.outputs())
         plant.advance(fw, t0, t1)
+        step_to, take = fw.step_to, fw.take_triggers
+        now = fw.time_us
         while True:
-            nxt = self.up.next_delivery_us()
-            if nxt is not None and nxt <= fw.time_us:
-                fw.uart_write(self.up.receive(fw.time_us))
+            nxt = up.next_delivery_us()
+            if nxt is not None and nxt <= now:
+                fw.uart_write(up.receive(now))
+                now = fw.time_us
                 continue
-            target = t1 if nxt is None or nxt > t1 else nxt
-            fw.step_to(target)
-            trig = fw.take_triggers()
+            last = nxt is None or nxt > t1
+            now = step_to(t1 if last else nxt)  # returns the time reached (earlier after a sonar trigger)
+            trig = take()
             if trig:
                 self.triggers += len(trig)
                 plant.on_triggers(fw, trig)
-            if fw.time_us >= t1 and (nxt is None or nxt > t1):
+            if last and now >= t1:
                 break
         self.t_us = t1
-        self.down.send(t1, fw.uart_read())
+        self.down.send(t1, self._uart_read())
         data = self.down.receive(t1)
         if data:
             self.host.feed(t1, data)
@@ -283,6 +325,7 @@ class SilRunResult:
     firmware_status: list[tuple[float, int, int, int, int, int, int]]
     link_stats: dict[str, int]
     wall_s: float = 0.0
+    backend: str = "native"
 
 
 def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, duration_s: float | None = None,
@@ -344,7 +387,7 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
                  "down_dropped": s.down.frames_dropped, "encoder_edges": s.plant.edges_queued,
                  "sonar_echoes": s.plant.echoes, "firmware_loop_passes": s.fw.loop_passes,
                  "late_events": s.fw.late_events}
-        return SilRunResult(run, s.tlog.getvalue(), status, stats, time.perf_counter() - wall0)
+        return SilRunResult(run, s.tlog.getvalue(), status, stats, time.perf_counter() - wall0, s.cfg.firmware)
     finally:
         s.close()
 
@@ -357,7 +400,7 @@ def write_sil_outputs(res: SilRunResult, out_dir: str | Path, plot: bool = True)
     paths = write_outputs(res.run, out, plot=plot)
     info = out / "run_info.json"
     d = json.loads(info.read_text(encoding="utf-8"))
-    d.update(firmware="sil", link=res.link_stats)
+    d.update(firmware="sil" if res.backend == "native" else f"sil-{res.backend}", link=res.link_stats)
     info.write_text(json.dumps(d, indent=2) + "\n", encoding="utf-8")
     tl = out / "link.tlog"
     tl.write_bytes(res.tlog)

@@ -1,0 +1,98 @@
+"""Build the AVR SIL pieces on demand: the real ATmega2560 firmware ELF (PlatformIO, env
+``megaatmega2560``, copied to build/sil/agnav_megaatmega2560.elf) and ``build/sil/libagnav_avr_sil.so`` (hil/simavr/avr_sil.c: the C API of
+hil/sil/sil_api.h backed by libsimavr running that ELF).
+
+    python -m agnav_host.sil.avr_build [--force] [--print]
+
+:func:`build_avr_library` rebuilds the library when avr_sil.c or sil_api.h is newer;
+:func:`build_avr_elf` runs ``pio run -e megaatmega2560`` when a firmware source, header,
+platformio.ini or the MAVLink dialect is newer than the copy (PlatformIO itself decides what to
+recompile). Both need ``cc``, libsimavr-dev and libelf-dev (``make setup`` installs them).
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+from pathlib import Path
+
+from .build import REPO_ROOT, SilBuildError
+
+__all__ = ["AVR_LIB_PATH", "AVR_ELF_PATH", "PIO_ELF_PATH", "avr_compile_command", "build_avr_library", "build_avr_elf"]
+
+AVR_SRC = REPO_ROOT / "hil" / "simavr" / "avr_sil.c"
+SIL_DIR = REPO_ROOT / "hil" / "sil"
+AVR_LIB_PATH = REPO_ROOT / "build" / "sil" / "libagnav_avr_sil.so"
+PIO_ELF_PATH = REPO_ROOT / ".pio" / "build" / "megaatmega2560" / "firmware.elf"
+# A private copy: `pio test -e megaatmega2560` links its Unity test programs to PIO_ELF_PATH too,
+# so that file is not always the firmware.
+AVR_ELF_PATH = REPO_ROOT / "build" / "sil" / "agnav_megaatmega2560.elf"
+CFLAGS = ["-O2", "-std=gnu11", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wl,-Bsymbolic"]
+LIBS = ["-lsimavr", "-lelf"]
+
+
+def avr_compile_command(out: Path = AVR_LIB_PATH) -> list[str]:
+    cc = shlex.split(os.environ.get("CC", "cc"))
+    return [*cc, *CFLAGS, f"-I{SIL_DIR}", str(AVR_SRC), "-o", str(out), *LIBS]
+
+
+def _newer(out: Path, inputs: list[Path]) -> bool:
+    if not out.exists():
+        return True
+    t = out.stat().st_mtime
+    return any(p.exists() and p.stat().st_mtime > t for p in inputs)
+
+
+def build_avr_library(out: Path = AVR_LIB_PATH, force: bool = False) -> Path:
+    """(Re)build the simavr-backed SIL library when missing or older than its sources."""
+    if not force and not _newer(out, [AVR_SRC, SIL_DIR / "sil_api.h"]):
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + f".tmp{os.getpid()}")
+    cmd = avr_compile_command(tmp)
+    r = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
+    if r.returncode != 0:
+        tmp.unlink(missing_ok=True)
+        raise SilBuildError(f"AVR SIL build failed ({shlex.join(cmd)}):\n{r.stderr}")
+    os.replace(tmp, out)
+    return out
+
+
+def _firmware_inputs() -> list[Path]:
+    fw = REPO_ROOT / "firmware"
+    out = [p for d in (fw / "src", fw / "lib") for p in d.rglob("*") if p.suffix in (".c", ".h")]
+    out += [REPO_ROOT / "platformio.ini", REPO_ROOT / "protocol" / "agnav.xml"]
+    return out
+
+
+def build_avr_elf(force: bool = False) -> Path:
+    """The ATmega2560 firmware ELF (a copy in build/sil/), rebuilt with ``pio run`` when older than
+    the firmware sources (PlatformIO recompiles only what changed, and relinks the firmware after
+    ``pio test`` left a test program in its build directory)."""
+    if not force and not _newer(AVR_ELF_PATH, _firmware_inputs()):
+        return AVR_ELF_PATH
+    pio = REPO_ROOT / ".venv" / "bin" / "pio"
+    cmd = [str(pio) if pio.exists() else "pio", "run", "-e", "megaatmega2560"]
+    env = dict(os.environ)
+    env.setdefault("PLATFORMIO_CORE_DIR", str(REPO_ROOT / ".pio-core"))
+    r = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, env=env)
+    if r.returncode != 0 or not PIO_ELF_PATH.exists():
+        raise SilBuildError(f"AVR firmware build failed ({shlex.join(cmd)}):\n{r.stdout[-4000:]}\n{r.stderr[-4000:]}")
+    AVR_ELF_PATH.parent.mkdir(parents=True, exist_ok=True)
+    tmp = AVR_ELF_PATH.with_name(AVR_ELF_PATH.name + f".tmp{os.getpid()}")
+    shutil.copyfile(PIO_ELF_PATH, tmp)
+    os.replace(tmp, AVR_ELF_PATH)  # a fresh mtime: newer than the sources it was built from
+    return AVR_ELF_PATH
+
+
+if __name__ == "__main__":  # python -m agnav_host.sil.avr_build [--force] [--print]
+    import sys
+
+    if "--print" in sys.argv:
+        print(shlex.join(avr_compile_command()))
+    else:
+        force = "--force" in sys.argv
+        print(build_avr_elf(force=force))
+        print(build_avr_library(force=force))
