@@ -1,10 +1,11 @@
 /*
  * AgNav AVR software-in-the-loop: the C API of hil/sil/sil_api.h (same names, same
  * semantics, so agnav_host.sil.binding loads either library) backed by libsimavr running
- * the REAL ATmega2560 ELF (.pio/build/megaatmega2560/firmware.elf) at 16 MHz.
+ * the REAL ATmega2560 firmware ELF (PlatformIO env megaatmega2560) at 16 MHz.
  * Built into build/sil/libagnav_avr_sil.so by agnav_host.sil.avr_build.
  *
- * ELF: sil_avr_set_elf(path) before sil_init(), else $AGNAV_AVR_ELF, else
+ * ELF: sil_avr_set_elf(path) before sil_init() (the Python binding passes
+ * build/sil/agnav_megaatmega2560.elf, see agnav_host/sil/avr_build.py), else $AGNAV_AVR_ELF, else
  * .pio/build/megaatmega2560/firmware.elf relative to the working directory.
  *
  * Time. sil_time_us() = CPU cycles since power-on / 16. sil_step_to() runs the core
@@ -24,9 +25,18 @@
  * sensors one after the other, 10 us pulse each), well before any echo can rise.
  *
  * UART0 is the link. Bytes written by sil_uart_write() wait in a queue and are fed to
- * simavr's receiver while it signals XON (input FIFO not full); simavr then paces them at
- * the programmed baud rate (UBRR0: 58.8 kbit/s, 170 us per byte). Bytes the firmware puts in
- * UDR0 are captured in a ring for sil_uart_read().
+ * simavr's receiver while its input FIFO has room (XOFF / FIFO full stops the feed; XON and a
+ * one-byte-time pacing timer resume it: simavr 1.6 raises XON only on UCSR0A polls); simavr
+ * then delivers them at the programmed byte time (UBRR0 = 33, U2X0: 10 bits x 34 x 8 cycles =
+ * 170 us; set here because simavr computes it before U2X0 is written). Bytes the firmware puts
+ * in UDR0 are captured in a ring for sil_uart_read().
+ *
+ * simavr 1.6 corrections, so the model behaves like the chip: TIFRn writes clear only the
+ * flags written as 1 (simavr clears all: a Timer5 overflow pending under cli() was lost and the
+ * watchdog reset the board); INTn low-level polling is off (the firmware never uses level
+ * mode; simavr polled PE4's servo pulse every cycle: 5x slower); sleep is fast-forwarded
+ * without usleep() and bounded at each stop cycle. Core resets (watchdog) are counted:
+ * sil_avr_resets().
  *
  * Outputs are read back from the timer registers: servo us = OCR3A / OCR3B / 2 (Timer3 at
  * 2 ticks per us), H-bridge duty = OCR4A / OCR4B, direction = PH5 / PH6. Watchdog kicks are
@@ -126,6 +136,7 @@ static struct {
     uint32_t tx_head, tx_tail;
     uint32_t tx_lost;
     uint32_t log_errors;
+    uint32_t resets;         /* core resets after power-on (watchdog, ...) */
 } S;
 
 static ev_t s_heap[SIL_EVENT_MAX];
@@ -310,12 +321,15 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
     (void)how_long;
 }
 
+/* Bounds a sleep's fast-forward to the cycle where run_core() must stop. It re-arms every
+ * cycle once due (run_core cancels it): when the firmware executes SLEEP on the very cycle the
+ * bound is reached, simavr fires the due timers and then jumps to the *next* one, which would
+ * otherwise be a timer/UART event hundreds of cycles later. */
 static avr_cycle_count_t wake(avr_t *avr, avr_cycle_count_t when, void *param)
 {
     (void)avr;
-    (void)when;
     (void)param;
-    return 0; /* only bounds a sleep's fast-forward */
+    return when + 1u;
 }
 
 static avr_uart_t *g_uart0;
@@ -475,6 +489,91 @@ static void ee_set(uint32_t addr, const uint8_t *src, uint32_t len)
     avr_ioctl(g_avr, AVR_IOCTL_EEPROM_SET, &d);
 }
 
+static void (*g_mcu_reset)(struct avr_t *avr);
+
+/* ---- timer interrupt flag registers: write-one-to-clear, as on the chip ----------------------
+ * simavr 1.6 clears EVERY pending flag of a TIFRn on any write to it: hal_idle_until()'s
+ * "TIFR5 = 1 << OCF5A" then drops a Timer5 overflow that became pending under cli(), the
+ * firmware's 32-bit clock loses 262 ms and the watchdog resets the board (seen at t = 1.31 s in
+ * the wall_ahead scenario). The chip clears only the bits written as 1: each TIFRn write goes
+ * through simavr's handler, then every flag that was set and written 0 is raised again. */
+#define TIFR_FIRST 0x35 /* TIFR0 .. TIFR5 = 0x35 .. 0x3A */
+#define TIFR_COUNT 6
+static struct {
+    avr_io_write_t c;
+    void *param;
+} g_tifr_orig[TIFR_COUNT];
+
+static avr_int_vector_t *vector_for_flag(avr_t *avr, avr_io_addr_t addr, uint8_t bit)
+{
+    for (int v = 0; v < 64; v++) {
+        avr_int_vector_t *iv = avr->interrupts.vector[v];
+        if (iv != NULL && iv->raised.reg == addr && iv->raised.bit == bit && iv->raised.mask == 1u) {
+            return iv;
+        }
+    }
+    return NULL;
+}
+
+static void tifr_write(struct avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    unsigned k = (unsigned)(uintptr_t)param;
+    uint8_t before = avr->data[addr];
+    if (g_tifr_orig[k].c != NULL) {
+        g_tifr_orig[k].c(avr, addr, v, g_tifr_orig[k].param);
+    } else {
+        avr->data[addr] = (uint8_t)(before & ~v);
+    }
+    uint8_t lost = (uint8_t)(before & (uint8_t)~v & (uint8_t)~avr->data[addr]);
+    for (uint8_t b = 0; lost != 0u && b < 8u; b++) {
+        if (lost & (1u << b)) {
+            avr_int_vector_t *iv = vector_for_flag(avr, addr, b);
+            if (iv != NULL) {
+                avr_raise_interrupt(avr, iv);
+            } else {
+                avr->data[addr] |= (uint8_t)(1u << b);
+            }
+        }
+    }
+}
+
+static void hook_tifr(avr_t *avr)
+{
+    for (unsigned k = 0; k < TIFR_COUNT; k++) {
+        unsigned a = AVR_DATA_TO_IO(TIFR_FIRST + k);
+        if (avr->io[a].w.c == tifr_write) {
+            continue;
+        }
+        g_tifr_orig[k].c = avr->io[a].w.c;
+        g_tifr_orig[k].param = avr->io[a].w.param;
+        avr->io[a].w.c = tifr_write;
+        avr->io[a].w.param = (void *)(uintptr_t)k;
+    }
+}
+
+static void no_level_poll(avr_t *avr)
+{
+    if (getenv("AGNAV_AVR_SIL_LEVEL_POLL") != NULL) {
+        return; /* keep simavr's default (benchmark of its cost only) */
+    }
+    /* INTn pins in low-level mode (reset state; INT4/INT5 = PE4/PE5 carry the servo PWM, INT0..3
+     * the echoes 8..11 before EICRA is set) make simavr poll the pin with an avr_ioctl() every
+     * cycle while it is low: up to 5x slower. The firmware never uses level mode: turned off. */
+    for (uint8_t i = 0; i < 8u; i++) {
+        avr_extint_set_strict_lvl_trig(avr, i, 0);
+    }
+}
+
+/* avr_reset() after power-on: a watchdog reset (or the firmware jumping to 0 is NOT seen here). */
+static void on_core_reset(struct avr_t *avr)
+{
+    S.resets++;
+    if (g_mcu_reset != NULL) {
+        g_mcu_reset(avr);
+    }
+    no_level_poll(avr);
+}
+
 /* ---- life cycle ----------------------------------------------------------------------------- */
 uint32_t sil_api_version(void) { return SIL_API_VERSION; }
 
@@ -531,12 +630,10 @@ void sil_init(void)
                                 (void *)(uintptr_t)i);
         g_echo[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ(echo_port), (int)pin);
     }
-    /* INTn pins in low-level mode (reset state; INT4/INT5 = PE4/PE5 carry the servo PWM, INT0..3
-     * the echoes 8..11 before EICRA is set) make simavr poll the pin with an avr_ioctl() every
-     * cycle while it is low: up to 5x slower. The firmware never uses level mode: turned off. */
-    for (uint8_t i = 0; i < 8u; i++) {
-        avr_extint_set_strict_lvl_trig(g_avr, i, 0);
-    }
+    no_level_poll(g_avr);
+    hook_tifr(g_avr);
+    g_mcu_reset = g_avr->reset;
+    g_avr->reset = on_core_reset;
 }
 
 /* Run the core until run_until (an instruction boundary at or after it). */
@@ -788,6 +885,7 @@ static int32_t param_read(int i)
     case 0: return v[0];
     case 1: return (uint16_t)(v[0] | (v[1] << 8));
     case 2: return (int16_t)(v[0] | (v[1] << 8));
+    case 4: return (int8_t)v[0];
     default: return (int32_t)((uint32_t)v[0] | (uint32_t)v[1] << 8 | (uint32_t)v[2] << 16 | (uint32_t)v[3] << 24);
     }
 }
@@ -803,7 +901,7 @@ int sil_param_set(const char *name, int32_t value)
         return -2; /* PARAMS_OUT_OF_RANGE */
     }
     uint8_t *v = g_avr->data + r->ptr;
-    unsigned n = r->type == 0 ? 1u : r->type == 3 ? 4u : 2u;
+    unsigned n = (r->type == 0 || r->type == 4) ? 1u : r->type == 3 ? 4u : 2u; /* U8 I8 / I32 / 16-bit */
     for (unsigned k = 0; k < n; k++) {
         v[k] = (uint8_t)((uint32_t)value >> (8u * k));
     }
@@ -878,14 +976,7 @@ uint64_t sil_avr_cycles(void) { return now_cycle(); }
 uint64_t sil_avr_instructions(void) { return S.instr; }
 int sil_avr_state(void) { return g_avr == NULL ? -1 : S.dead ? (int)g_avr->state : 0; } /* 0 ok */
 uint32_t sil_avr_log_errors(void) { return S.log_errors; }
+uint32_t sil_avr_resets(void) { return S.resets; }
 uint32_t sil_avr_uart_rx_pending(void) { return S.rx_head - S.rx_tail; }
 uint32_t sil_avr_uart_tx_lost(void) { return S.tx_lost; }
 const char *sil_avr_elf(void) { return elf_path(); }
-void sil_avr_debug_uart(uint32_t *out)
-{
-    out[0] = g_uart0 ? g_uart0->input.read : 999u;
-    out[1] = g_uart0 ? g_uart0->input.write : 999u;
-    out[2] = g_uart0 ? (uint32_t)g_uart0->cycles_per_byte : 0u;
-    out[3] = g_avr ? g_avr->data[REG_UCSR0B] : 0u;
-    out[4] = g_avr ? g_avr->data[0xC0] : 0u;
-}
