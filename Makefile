@@ -48,9 +48,9 @@ $(VENV)/.installed: pyproject.toml requirements-lock.txt
 
 tools: build/bin/avr_harness
 
-build/bin/avr_harness: hil/simavr/avr_harness.c
+build/bin/avr_harness: hil/simavr/avr_harness.c hil/simavr/avr_board_model.c hil/simavr/avr_board_model.h
 	@mkdir -p build/bin
-	cc -O2 -Wall -Wextra -o $@ $< -lsimavr -lelf
+	cc -O2 -Wall -Wextra -o $@ hil/simavr/avr_harness.c hil/simavr/avr_board_model.c -lsimavr -lelf
 
 # The default mission: the real firmware (native SIL) in lock-step with the world simulator,
 # driven by the default host planner over the modelled 57600-baud radio link.

@@ -27,6 +27,8 @@
  *                             return) are measured; min/mean/max go to stderr at the end
  * At the end stderr gets "injected_edges=E0,E1,..." for the encoder check.
  */
+#include "avr_board_model.h"
+
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_cycle_timers.h>
@@ -168,14 +170,6 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
     avr_cycle_timer_register(g_avr, rise + width, echo_fall, (void *)(uintptr_t)idx);
 }
 
-/* simavr's default sleep callback usleep()s to keep a sleeping core in wall-clock pace; the
- * harness wants simulated time only, so sleeping cycles are skipped at once. */
-static void sleep_skip(avr_t *avr, avr_cycle_count_t how_long)
-{
-    (void)avr;
-    (void)how_long;
-}
-
 static uint16_t sp_now(void) { return (uint16_t)(g_avr->data[0x5D] | (g_avr->data[0x5E] << 8)); }
 
 static void on_uart_byte(struct avr_irq_t *irq, uint32_t value, void *param)
@@ -272,7 +266,7 @@ int main(int argc, char **argv)
     }
     avr_init(g_avr);
     g_avr->log = 0;
-    g_avr->sleep = sleep_skip;
+    avr_model_fix(g_avr); /* simavr corrections shared with the SIL library (avr_board_model.h) */
     avr_load_firmware(g_avr, &fw);
     g_avr->frequency = freq;
 
@@ -308,6 +302,8 @@ int main(int argc, char **argv)
         }
     }
 
+    avr_uart_t *uart0 = avr_model_uart0(g_avr);
+    int baud_fixed = 0;
     const uint64_t max_cycles = (uint64_t)(seconds * (double)freq);
     int state = cpu_Running;
     int exit_rc = -1;
@@ -317,6 +313,10 @@ int main(int argc, char **argv)
     while (state != cpu_Done && state != cpu_Crashed) {
         uint64_t before = g_avr->cycle;
         state = avr_run(g_avr);
+        if (!baud_fixed && (g_avr->data[0xC1] & 0x08u)) { /* TXEN0: the firmware set UBRR0 and U2X0 */
+            avr_model_uart0_fix_baud(g_avr, uart0);
+            baud_fixed = 1;
+        }
         if (state == cpu_Sleeping) {
             g_sleep_cycles += g_avr->cycle - before;
             g_sleep_calls++;

@@ -51,6 +51,8 @@
  */
 #include "sil_api.h"
 
+#include "avr_board_model.h"
+
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
@@ -335,30 +337,9 @@ static avr_cycle_count_t wake(avr_t *avr, avr_cycle_count_t when, void *param)
 static avr_uart_t *g_uart0;
 DEFINE_FIFO(uint16_t, uart_fifo); /* the accessors of avr_uart.h's input FIFO (static inline) */
 
-static avr_uart_t *find_uart0(avr_t *avr)
-{
-    for (avr_io_t *io = avr->io_port; io != NULL; io = io->next) {
-        if (io->kind != NULL && strcmp(io->kind, "uart") == 0 && ((avr_uart_t *)io)->name == '0') {
-            return (avr_uart_t *)io;
-        }
-    }
-    return NULL;
-}
-
 static avr_cycle_count_t uart_pace(avr_t *avr, avr_cycle_count_t when, void *param);
 
-/* simavr computes the byte time when UBRR0 is written; hal_uart_init() writes UBRR0 before
- * U2X0, so simavr would run the UART at half speed (and counts a parity bit that 8N1 does
- * not have). Byte time of the real USART: 10 bits x (UBRR0 + 1) x (U2X0 ? 8 : 16) cycles. */
-static void uart_fix_baud(void)
-{
-    if (g_uart0 == NULL || g_avr == NULL) {
-        return;
-    }
-    uint32_t ubrr = (uint32_t)(g_avr->data[0xC4] | ((g_avr->data[0xC5] & 0x0Fu) << 8)); /* UBRR0L/H */
-    uint32_t u2x = g_avr->data[0xC0] & 0x02u;                                            /* UCSR0A U2X0 */
-    g_uart0->cycles_per_byte = 10u * (ubrr + 1u) * (u2x ? 8u : 16u);
-}
+static void uart_fix_baud(void) { avr_model_uart0_fix_baud(g_avr, g_uart0); }
 
 /* Feed queued link bytes to simavr's receiver while its input FIFO has room (XOFF / a full
  * FIFO stops it). simavr 1.6 signals XON only when the firmware polls UCSR0A, which this
@@ -491,79 +472,6 @@ static void ee_set(uint32_t addr, const uint8_t *src, uint32_t len)
 
 static void (*g_mcu_reset)(struct avr_t *avr);
 
-/* ---- timer interrupt flag registers: write-one-to-clear, as on the chip ----------------------
- * simavr 1.6 clears EVERY pending flag of a TIFRn on any write to it: hal_idle_until()'s
- * "TIFR5 = 1 << OCF5A" then drops a Timer5 overflow that became pending under cli(), the
- * firmware's 32-bit clock loses 262 ms and the watchdog resets the board (seen at t = 1.31 s in
- * the wall_ahead scenario). The chip clears only the bits written as 1: each TIFRn write goes
- * through simavr's handler, then every flag that was set and written 0 is raised again. */
-#define TIFR_FIRST 0x35 /* TIFR0 .. TIFR5 = 0x35 .. 0x3A */
-#define TIFR_COUNT 6
-static struct {
-    avr_io_write_t c;
-    void *param;
-} g_tifr_orig[TIFR_COUNT];
-
-static avr_int_vector_t *vector_for_flag(avr_t *avr, avr_io_addr_t addr, uint8_t bit)
-{
-    for (int v = 0; v < 64; v++) {
-        avr_int_vector_t *iv = avr->interrupts.vector[v];
-        if (iv != NULL && iv->raised.reg == addr && iv->raised.bit == bit && iv->raised.mask == 1u) {
-            return iv;
-        }
-    }
-    return NULL;
-}
-
-static void tifr_write(struct avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-    unsigned k = (unsigned)(uintptr_t)param;
-    uint8_t before = avr->data[addr];
-    if (g_tifr_orig[k].c != NULL) {
-        g_tifr_orig[k].c(avr, addr, v, g_tifr_orig[k].param);
-    } else {
-        avr->data[addr] = (uint8_t)(before & ~v);
-    }
-    uint8_t lost = (uint8_t)(before & (uint8_t)~v & (uint8_t)~avr->data[addr]);
-    for (uint8_t b = 0; lost != 0u && b < 8u; b++) {
-        if (lost & (1u << b)) {
-            avr_int_vector_t *iv = vector_for_flag(avr, addr, b);
-            if (iv != NULL) {
-                avr_raise_interrupt(avr, iv);
-            } else {
-                avr->data[addr] |= (uint8_t)(1u << b);
-            }
-        }
-    }
-}
-
-static void hook_tifr(avr_t *avr)
-{
-    for (unsigned k = 0; k < TIFR_COUNT; k++) {
-        unsigned a = AVR_DATA_TO_IO(TIFR_FIRST + k);
-        if (avr->io[a].w.c == tifr_write) {
-            continue;
-        }
-        g_tifr_orig[k].c = avr->io[a].w.c;
-        g_tifr_orig[k].param = avr->io[a].w.param;
-        avr->io[a].w.c = tifr_write;
-        avr->io[a].w.param = (void *)(uintptr_t)k;
-    }
-}
-
-static void no_level_poll(avr_t *avr)
-{
-    if (getenv("AGNAV_AVR_SIL_LEVEL_POLL") != NULL) {
-        return; /* keep simavr's default (benchmark of its cost only) */
-    }
-    /* INTn pins in low-level mode (reset state; INT4/INT5 = PE4/PE5 carry the servo PWM, INT0..3
-     * the echoes 8..11 before EICRA is set) make simavr poll the pin with an avr_ioctl() every
-     * cycle while it is low: up to 5x slower. The firmware never uses level mode: turned off. */
-    for (uint8_t i = 0; i < 8u; i++) {
-        avr_extint_set_strict_lvl_trig(avr, i, 0);
-    }
-}
-
 /* avr_reset() after power-on: a watchdog reset (or the firmware jumping to 0 is NOT seen here). */
 static void on_core_reset(struct avr_t *avr)
 {
@@ -571,7 +479,7 @@ static void on_core_reset(struct avr_t *avr)
     if (g_mcu_reset != NULL) {
         g_mcu_reset(avr);
     }
-    no_level_poll(avr);
+    avr_model_no_level_poll(avr);
 }
 
 /* ---- life cycle ----------------------------------------------------------------------------- */
@@ -608,7 +516,7 @@ void sil_init(void)
     avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, NULL);
     avr_irq_register_notify(avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff, NULL);
     g_uart_in = avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
-    g_uart0 = find_uart0(g_avr);
+    g_uart0 = avr_model_uart0(g_avr);
 
     /* simavr's ATmega2560 has no PCINT2 (PORTK): modelled as in avr_harness.c. Vector 11,
      * PCICR 0x68 bit 2 enable, PCIFR 0x3B bit 2 flag. */
@@ -630,8 +538,8 @@ void sil_init(void)
                                 (void *)(uintptr_t)i);
         g_echo[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ(echo_port), (int)pin);
     }
-    no_level_poll(g_avr);
-    hook_tifr(g_avr);
+    avr_model_no_level_poll(g_avr);
+    avr_model_hook_tifr(g_avr);
     g_mcu_reset = g_avr->reset;
     g_avr->reset = on_core_reset;
 }

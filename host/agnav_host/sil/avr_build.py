@@ -23,6 +23,7 @@ from .build import REPO_ROOT, SilBuildError
 __all__ = ["AVR_LIB_PATH", "AVR_ELF_PATH", "PIO_ELF_PATH", "avr_compile_command", "build_avr_library", "build_avr_elf"]
 
 AVR_SRC = REPO_ROOT / "hil" / "simavr" / "avr_sil.c"
+AVR_MODEL_SRC = REPO_ROOT / "hil" / "simavr" / "avr_board_model.c"  # simavr corrections, shared with avr_harness
 SIL_DIR = REPO_ROOT / "hil" / "sil"
 AVR_LIB_PATH = REPO_ROOT / "build" / "sil" / "libagnav_avr_sil.so"
 PIO_ELF_PATH = REPO_ROOT / ".pio" / "build" / "megaatmega2560" / "firmware.elf"
@@ -35,7 +36,7 @@ LIBS = ["-lsimavr", "-lelf"]
 
 def avr_compile_command(out: Path = AVR_LIB_PATH) -> list[str]:
     cc = shlex.split(os.environ.get("CC", "cc"))
-    return [*cc, *CFLAGS, f"-I{SIL_DIR}", str(AVR_SRC), "-o", str(out), *LIBS]
+    return [*cc, *CFLAGS, f"-I{SIL_DIR}", str(AVR_SRC), str(AVR_MODEL_SRC), "-o", str(out), *LIBS]
 
 
 def _newer(out: Path, inputs: list[Path]) -> bool:
@@ -47,7 +48,7 @@ def _newer(out: Path, inputs: list[Path]) -> bool:
 
 def build_avr_library(out: Path = AVR_LIB_PATH, force: bool = False) -> Path:
     """(Re)build the simavr-backed SIL library when missing or older than its sources."""
-    if not force and not _newer(out, [AVR_SRC, SIL_DIR / "sil_api.h"]):
+    if not force and not _newer(out, [AVR_SRC, AVR_MODEL_SRC, AVR_MODEL_SRC.with_suffix(".h"), SIL_DIR / "sil_api.h"]):
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + f".tmp{os.getpid()}")
