@@ -1,5 +1,6 @@
 /* AgNav native SIL: see sil_api.h. Built with the firmware into libagnav_sil.so. */
 #include "sil_api.h"
+#include "sil_events.h"
 
 #include <string.h>
 
@@ -17,13 +18,6 @@ void agnav_loop_once(void);
 
 enum { EV_ENCODER = 0, EV_ECHO = 1 };
 
-typedef struct {
-    uint64_t t_us;
-    uint64_t seq; /* queueing order: ties keep it */
-    uint8_t kind;
-    uint8_t idx;
-    uint8_t val;
-} sil_event_t;
 
 static struct {
     uint64_t now_us;
@@ -42,55 +36,12 @@ static struct {
 static sil_event_t s_heap[SIL_EVENT_MAX];
 
 /* ---- event min-heap on (t_us, seq) ------------------------------------------ */
-static int ev_less(const sil_event_t *a, const sil_event_t *b)
-{
-    return a->t_us < b->t_us || (a->t_us == b->t_us && a->seq < b->seq);
-}
-
 static int ev_push(uint8_t kind, uint8_t idx, uint8_t val, uint64_t t_us)
 {
-    if (S.ev_n >= SIL_EVENT_MAX) {
-        return 0;
-    }
-    sil_event_t e = {t_us, S.ev_seq++, kind, idx, val};
-    uint32_t i = S.ev_n++;
-    while (i > 0u) {
-        uint32_t p = (i - 1u) / 2u;
-        if (!ev_less(&e, &s_heap[p])) {
-            break;
-        }
-        s_heap[i] = s_heap[p];
-        i = p;
-    }
-    s_heap[i] = e;
-    return 1;
+    return sil_ev_push(s_heap, SIL_EVENT_MAX, &S.ev_n, &S.ev_seq, kind, idx, val, t_us);
 }
 
-static sil_event_t ev_pop(void)
-{
-    sil_event_t top = s_heap[0];
-    sil_event_t last = s_heap[--S.ev_n];
-    if (S.ev_n == 0u) {
-        return top;
-    }
-    uint32_t i = 0u;
-    for (;;) {
-        uint32_t c = 2u * i + 1u;
-        if (c >= S.ev_n) {
-            break;
-        }
-        if (c + 1u < S.ev_n && ev_less(&s_heap[c + 1u], &s_heap[c])) {
-            c++;
-        }
-        if (!ev_less(&s_heap[c], &last)) {
-            break;
-        }
-        s_heap[i] = s_heap[c];
-        i = c;
-    }
-    s_heap[i] = last;
-    return top;
-}
+static sil_event_t ev_pop(void) { return sil_ev_pop(s_heap, &S.ev_n); }
 
 /* ---- hooks --------------------------------------------------------------------- */
 static void on_trigger(uint8_t idx, uint32_t t_us)

@@ -50,6 +50,7 @@
  * firmware loads at its next boot. sil_reboot() keeps the EEPROM and powers on a new core.
  */
 #include "sil_api.h"
+#include "sil_events.h"
 
 #include "avr_board_model.h"
 
@@ -102,11 +103,7 @@
 
 enum { EV_ENCODER = 0, EV_ECHO = 1 };
 
-typedef struct {
-    uint64_t t_us;
-    uint64_t seq;
-    uint8_t kind, idx, val;
-} ev_t;
+typedef sil_event_t ev_t;
 
 typedef struct {
     char name[17];
@@ -152,52 +149,12 @@ static avr_irq_t *g_enc_a[4], *g_enc_b[4], *g_echo[12], *g_uart_in;
 static avr_int_vector_t g_pcint2;
 
 /* ---- event heap (same as the native SIL) ------------------------------------------------ */
-static int ev_less(const ev_t *a, const ev_t *b) { return a->t_us < b->t_us || (a->t_us == b->t_us && a->seq < b->seq); }
-
 static int ev_push(uint8_t kind, uint8_t idx, uint8_t val, uint64_t t_us)
 {
-    if (S.ev_n >= SIL_EVENT_MAX) {
-        return 0;
-    }
-    ev_t e = {t_us, S.ev_seq++, kind, idx, val};
-    uint32_t i = S.ev_n++;
-    while (i > 0u) {
-        uint32_t p = (i - 1u) / 2u;
-        if (!ev_less(&e, &s_heap[p])) {
-            break;
-        }
-        s_heap[i] = s_heap[p];
-        i = p;
-    }
-    s_heap[i] = e;
-    return 1;
+    return sil_ev_push(s_heap, SIL_EVENT_MAX, &S.ev_n, &S.ev_seq, kind, idx, val, t_us);
 }
 
-static ev_t ev_pop(void)
-{
-    ev_t top = s_heap[0];
-    ev_t last = s_heap[--S.ev_n];
-    if (S.ev_n == 0u) {
-        return top;
-    }
-    uint32_t i = 0u;
-    for (;;) {
-        uint32_t c = 2u * i + 1u;
-        if (c >= S.ev_n) {
-            break;
-        }
-        if (c + 1u < S.ev_n && ev_less(&s_heap[c + 1u], &s_heap[c])) {
-            c++;
-        }
-        if (!ev_less(&s_heap[c], &last)) {
-            break;
-        }
-        s_heap[i] = s_heap[c];
-        i = c;
-    }
-    s_heap[i] = last;
-    return top;
-}
+static ev_t ev_pop(void) { return sil_ev_pop(s_heap, &S.ev_n); }
 
 /* ---- ELF: firmware image and the PARAMS table ---------------------------------------------- */
 static const char *elf_path(void)

@@ -1,0 +1,72 @@
+/*
+ * The SIL's timed event queue (encoder edges, echo edges), shared by the native SIL
+ * (hil/sil/sil_api.c) and the simavr one (hil/simavr/avr_sil.c): a binary min-heap on
+ * (t_us, seq), so events at the same microsecond keep their queueing order.
+ */
+#ifndef AGNAV_SIL_EVENTS_H
+#define AGNAV_SIL_EVENTS_H
+
+#include <stdint.h>
+
+typedef struct {
+    uint64_t t_us;
+    uint64_t seq; /* queueing order: ties keep it */
+    uint8_t kind;
+    uint8_t idx;
+    uint8_t val;
+} sil_event_t;
+
+static inline int sil_ev_less(const sil_event_t *a, const sil_event_t *b)
+{
+    return a->t_us < b->t_us || (a->t_us == b->t_us && a->seq < b->seq);
+}
+
+/* Push; returns 0 when the heap (capacity cap) is full. */
+static inline int sil_ev_push(sil_event_t *heap, uint32_t cap, uint32_t *n, uint64_t *seq, uint8_t kind, uint8_t idx,
+                              uint8_t val, uint64_t t_us)
+{
+    if (*n >= cap) {
+        return 0;
+    }
+    sil_event_t e = {t_us, (*seq)++, kind, idx, val};
+    uint32_t i = (*n)++;
+    while (i > 0u) {
+        uint32_t p = (i - 1u) / 2u;
+        if (!sil_ev_less(&e, &heap[p])) {
+            break;
+        }
+        heap[i] = heap[p];
+        i = p;
+    }
+    heap[i] = e;
+    return 1;
+}
+
+/* Pop the earliest event; *n must be > 0. */
+static inline sil_event_t sil_ev_pop(sil_event_t *heap, uint32_t *n)
+{
+    sil_event_t top = heap[0];
+    sil_event_t last = heap[--(*n)];
+    if (*n == 0u) {
+        return top;
+    }
+    uint32_t i = 0u;
+    for (;;) {
+        uint32_t c = 2u * i + 1u;
+        if (c >= *n) {
+            break;
+        }
+        if (c + 1u < *n && sil_ev_less(&heap[c + 1u], &heap[c])) {
+            c++;
+        }
+        if (!sil_ev_less(&heap[c], &last)) {
+            break;
+        }
+        heap[i] = heap[c];
+        i = c;
+    }
+    heap[i] = last;
+    return top;
+}
+
+#endif
