@@ -151,6 +151,74 @@ plant_radius_m = 0.05
     assert d is not None and d == pytest.approx(1.0, abs=0.05)
 
 
+def _curvy_row_toml(jitter_m: float) -> str:
+    return f"""[scenario]
+name = "curvy"
+world_seed = 3
+[robot]
+model = "diff_drive"
+start = {{ x_m = 0.0, y_m = -1.0, yaw_deg = 21.4 }}
+radius_m = 0.3
+track_m = 0.5
+max_speed_m_s = 0.6
+[laser]
+model = "tim561"
+[[goals]]
+x_m = 14.0
+y_m = 0.0
+[[rows]]
+start = {{ x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }}
+length_m = 16.0
+amplitude_m = 1.5
+wavelength_m = 24.0
+plant_spacing_m = 0.35
+plant_radius_m = 0.25
+cluster = 4
+jitter_m = {jitter_m}
+"""
+
+
+def test_proximity_follower_holds_the_distance_through_a_bend():
+    # the curvy_row bend (radius down to 9.7 m) with bushes on the line: the robot, 1 m right of the row
+    # (on the outside, then the inside of the bends), keeps 1 m from the centre line within 4 cm
+    from agnav_host.sim.world import sine_curve
+
+    sc = parse_scenario(_curvy_row_toml(0.0), "<curvy>")
+    assert sc.laser is not None
+    # bushes with no scatter about the line; 0.145 m: their visible half-width (a calibration drive as in the benchmark)
+    ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, row_half_width_m=0.145,
+                                                     speed_m_s=0.5, mount=sc.laser.mount))
+    traj = _run(sc, ctrl, 28.0)
+    centre = sine_curve(0.0, 0.0, 0.0, 16.0, 1.5, 24.0, step_m=0.05)
+    late = traj[(traj[:, 1] > 2.0) & (traj[:, 1] < 13.0)]
+    assert len(late) > 100, "did not get through the bend"
+    a, b = centre[:-1], centre[1:]
+    d = b - a
+    q = late[:, None, 1:3] - a[None]
+    u = np.clip((q * d[None]).sum(-1) / (d**2).sum(-1)[None], 0.0, 1.0)
+    dist = np.hypot(q[..., 0] - u * d[None, :, 0], q[..., 1] - u * d[None, :, 1]).min(axis=1)
+    assert np.abs(dist - 1.0).max() < 0.04, f"distance {dist.min():.3f}-{dist.max():.3f} m"
+    assert dist.mean() == pytest.approx(1.0, abs=0.02)
+    assert traj[:, 4].min() > 0.0
+
+
+def test_proximity_feed_forward_is_the_parallel_path_curvature():
+    # a row bending left (kappa > 0) with the robot on its right is the outside of the bend: radius R + d
+    sc = parse_scenario(_curvy_row_toml(0.0), "<curvy>")
+    assert sc.laser is not None
+    ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, row_half_width_m=0.145, mount=sc.laser.mount))
+    k = 2 * math.pi / 24.0
+    x0 = 18.0 - 12.0  # x = 6: the row turns right (kappa = -A k^2), the robot is on the inside
+    th = math.atan(1.5 * k * math.cos(k * x0))
+    pose = Pose2D(x0 + math.sin(th), 1.5 * math.sin(k * x0) - math.cos(th), th)
+    est = ctrl.observe(Observation(0.0, pose, 0.0, 0.0, Goal(0, 0), sc.laser.scan(sc.world, pose, 0.0, None)))
+    assert est is not None and est.curvature_1_m < -0.05
+    kr = ctrl._kr  # noqa: SLF001 - the filtered row curvature
+    assert kr is not None
+    assert ctrl._kappa == pytest.approx(kr / (1.0 + kr * 1.0))  # noqa: SLF001
+    assert abs(ctrl._kappa) > abs(kr)  # noqa: SLF001 - inside the bend the path is tighter than the row
+
+
 def test_proximity_params_reject_a_bad_side():
     with pytest.raises(ValueError, match="side"):
         ProximityFollowerParams(side="up")

@@ -243,7 +243,13 @@ class ProximityFollowerParams:
     """Follow one row at ``distance_m`` from its centre line (ref 000 follows at 1 m).
 
     ``row_half_width_m`` is the distance from the row's centre line to the face the laser sees (half
-    the canopy width, a field parameter); 0 follows the face itself."""
+    the canopy width, a field parameter); 0 follows the face itself. The row is estimated from a short
+    map of its face: each scan's row points go, through the robot's odometry (speed and yaw rate), into
+    a buffer that keeps the face seen over the last ``window_back_m`` of travel; a curve of degree
+    ``fit_degree`` is fitted to it over ``[-window_back_m, window_ahead_m]`` around the robot (0.1 m bins,
+    so every stretch of row counts the same however many beams hit it; bins more than ``trim_m`` off the
+    curve are dropped). ``curvature_filter_m`` is the travel over which the curvature feed-forward is
+    averaged."""
 
     side: str = "right"  # the row is on this side of the robot
     distance_m: float = 1.0
@@ -254,8 +260,15 @@ class ProximityFollowerParams:
     limits: DriveLimits = field(default_factory=DriveLimits)
     mount: Pose2D = field(default_factory=Pose2D)
     scan: ScanParams = field(default_factory=ScanParams)
-    x_min_m: float = -1.0
-    x_max_m: float = 3.0
+    x_min_m: float = -1.0  # scan points used from this far behind the robot ...
+    x_max_m: float = 5.5  # ... to this far ahead
+    window_back_m: float = 6.0
+    window_ahead_m: float = 5.0
+    fit_degree: int = 3
+    bin_m: float = 0.1
+    trim_m: float = 0.1
+    gate_m: float = 0.3
+    curvature_filter_m: float = 1.0
     meas_std_m: float = 0.02
     meas_std_rad: float = 0.03
     process_std_m: float = 0.01
@@ -266,11 +279,98 @@ class ProximityFollowerParams:
             raise ValueError(f"side must be 'left' or 'right', got {self.side!r}")
         if not (self.distance_m > 0 and self.speed_m_s > 0):
             raise ValueError("ProximityFollowerParams: distance_m and speed_m_s must be > 0")
+        if not (self.window_back_m >= 0 and self.window_ahead_m > 0 and self.bin_m > 0 and 1 <= self.fit_degree <= 3):
+            raise ValueError("ProximityFollowerParams: windows and bin_m must be > 0, fit_degree 1-3")
+
+
+class _RowFaceMap:
+    """The row's face over the last metres of travel, in an odometry frame (dead reckoning from the
+    robot's speed and yaw rate), and the curve fitted to it around the robot."""
+
+    def __init__(self, p: ProximityFollowerParams) -> None:
+        self.p = p
+        self.sgn = 1.0 if p.side == "left" else -1.0
+        self.pose = np.zeros(3)  # odometry x, y, yaw
+        self.s = 0.0  # travel, m
+        self._t: float | None = None
+        self._vw = (0.0, 0.0)
+        self._scans: list[tuple[float, FloatArray]] = []  # (travel when seen, face points in the odometry frame)
+        self.coef: FloatArray | None = None  # y = sum coef[i] x^i in the robot frame at fit_pose
+        self.fit_pose = np.zeros(3)
+
+    def odometry(self, t: float, v: float, w: float) -> None:
+        if self._t is not None:
+            dt = max(0.0, t - self._t)
+            vm, wm = 0.5 * (self._vw[0] + v), 0.5 * (self._vw[1] + w)
+            th = self.pose[2] + 0.5 * wm * dt
+            self.pose = self.pose + np.array([vm * math.cos(th) * dt, vm * math.sin(th) * dt, wm * dt])
+            self.s += abs(vm) * dt
+        self._t = t
+        self._vw = (v, w)
+
+    def _to_frame(self, frame: FloatArray, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        c, s = math.cos(frame[2]), math.sin(frame[2])
+        dx, dy = xy[:, 0] - frame[0], xy[:, 1] - frame[1]
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def add_scan(self, pts: ScanPoints) -> None:
+        p, sgn = self.p, self.sgn
+        x, y = pts.xy[:, 0], pts.xy[:, 1]
+        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
+        odo = np.column_stack((self.pose[0] + c * x - s * y, self.pose[1] + s * x + c * y))
+        sel = (x >= p.x_min_m) & (x <= p.x_max_m) & (sgn * y > 0.05)
+        if self.coef is not None:
+            fx, fy = self._to_frame(self.fit_pose, odo)
+            sel &= np.abs(fy - np.polynomial.polynomial.polyval(fx, self.coef)) < p.gate_m
+        else:  # first scan: gate by a single-scan fit of the near face
+            est = detect_single_row(pts, p.side)
+            if est is None:
+                return
+            b0 = -math.tan(est.heading_rad)
+            a0 = est.offset_m / math.cos(math.atan(b0))
+            sel &= np.abs(y - (a0 + b0 * x + 0.5 * est.curvature_1_m * x * x)) < p.gate_m
+        self._scans.append((self.s, odo[sel]))
+        keep_from = self.s - p.window_back_m - max(0.0, p.x_max_m)
+        while self._scans and self._scans[0][0] < keep_from:
+            self._scans.pop(0)
+
+    def fit(self) -> SingleRowEstimate | None:
+        p = self.p
+        if not self._scans:
+            return None
+        rx, ry = self._to_frame(self.pose, np.vstack([sc[1] for sc in self._scans]))
+        m = (rx >= -p.window_back_m) & (rx <= p.window_ahead_m)
+        rx, ry = rx[m], ry[m]
+        if len(rx) < 10:
+            return None
+        b = np.floor((rx + p.window_back_m) / p.bin_m).astype(int)
+        n = np.bincount(b)
+        ok = n > 0
+        bx = np.bincount(b, rx)[ok] / n[ok]
+        by = np.bincount(b, ry)[ok] / n[ok]
+        deg = p.fit_degree if np.ptp(bx) > 2.0 else min(p.fit_degree, 1)
+        keep = np.ones(len(bx), dtype=bool)
+        coef = None
+        for _ in range(3):
+            if keep.sum() < deg + 4:
+                return None
+            coef = np.polynomial.polynomial.polyfit(bx[keep], by[keep], deg)
+            keep = np.abs(by - np.polynomial.polynomial.polyval(bx, coef)) < p.trim_m
+        assert coef is not None
+        self.coef, self.fit_pose = coef, self.pose.copy()
+        a0 = float(coef[0])
+        b1 = float(coef[1]) if deg >= 1 else 0.0
+        c2 = float(coef[2]) if deg >= 2 else 0.0
+        nk = int(keep.sum())
+        span = float(np.ptp(bx[keep])) if nk else 0.0
+        conf = min(1.0, nk / 20.0) * min(1.0, span / 2.0)
+        return SingleRowEstimate(a0 * math.cos(math.atan(b1)), -math.atan(b1), 2.0 * c2 / (1.0 + b1 * b1) ** 1.5, conf, nk)
 
 
 class ProximityFollower:
     """Keep ``distance_m`` from one row's centre line while driving along it (module docstring law,
-    with the row's curvature as feed-forward, scaled to the parallel path)."""
+    with the row's curvature, averaged over ``curvature_filter_m`` of travel and moved to the parallel
+    path, as feed-forward). The row comes from :class:`_RowFaceMap` (see the parameters)."""
 
     def __init__(self, params: ProximityFollowerParams | None = None) -> None:
         self.params = params or ProximityFollowerParams()
@@ -279,8 +379,11 @@ class ProximityFollower:
     def reset(self) -> None:
         p = self.params
         self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
+        self._map = _RowFaceMap(p)
         self.last: SingleRowEstimate | None = None
         self._kappa = 0.0
+        self._kr: float | None = None
+        self._s_prev = 0.0
 
     def distance_estimate_m(self) -> float | None:
         """Filtered distance from the row's centre line, m."""
@@ -289,25 +392,38 @@ class ProximityFollower:
             return None
         return self.params.distance_m + (1.0 if self.params.side == "right" else -1.0) * float(x[0])
 
-    def step(self, obs: Observation) -> DriveCommand:
+    def observe(self, obs: Observation) -> SingleRowEstimate | None:
+        """Odometry and filter to ``obs.t_s``, then fold in the scan's row estimate (returned); no steering."""
         p = self.params
         sgn = 1.0 if p.side == "left" else -1.0
+        self._map.odometry(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
         self._kf.kappa = self._kappa
         self._kf.predict(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
-        if obs.scan is not None:
-            pts = points_from_scan(obs.scan, p.mount, p.scan)
-            est = detect_single_row(pts, p.side, p.x_min_m, p.x_max_m, prior=self.last)
-            if est is None and self.last is not None:
-                est = detect_single_row(pts, p.side, p.x_min_m, p.x_max_m)
-            if est is not None and est.confidence > 0.1:
-                self.last = est
-                centre = est.offset_m + sgn * p.row_half_width_m
-                e = -(centre - sgn * p.distance_m)  # robot left of the wanted path: positive
-                k = 1.0 / max(est.confidence, 0.05)
-                self._kf.update(e, est.heading_rad, p.meas_std_m * k, p.meas_std_rad * k)
-                kr = est.curvature_1_m
-                # parallel path at distance d: 1 / (R + d) on the outside of the bend
-                self._kappa = 0.7 * self._kappa + 0.3 * kr / max(0.2, 1.0 - sgn * kr * p.distance_m)
+        if obs.scan is None:
+            return None
+        self._map.add_scan(points_from_scan(obs.scan, p.mount, p.scan))
+        est = self._map.fit()
+        if est is None or est.confidence <= 0.1:
+            return est
+        self.last = est
+        centre = est.offset_m + sgn * p.row_half_width_m
+        e = -(centre - sgn * p.distance_m)  # robot left of the wanted path: positive
+        k = 1.0 / max(est.confidence, 0.05)
+        self._kf.update(e, est.heading_rad, p.meas_std_m * k, p.meas_std_rad * k)
+        ds = self._map.s - self._s_prev
+        self._s_prev = self._map.s
+        kr = est.curvature_1_m
+        if self._kr is None:
+            self._kr = kr
+        else:
+            self._kr += min(1.0, ds / max(p.curvature_filter_m, 1e-6)) * (kr - self._kr)
+        # the parallel path at distance d on the row's right (sgn = +1) or left: radius R + sgn d
+        self._kappa = self._kr / max(0.2, 1.0 + sgn * self._kr * p.distance_m)
+        return est
+
+    def step(self, obs: Observation) -> DriveCommand:
+        p = self.params
+        self.observe(obs)
         x = self._kf.x
         if x is None:
             return p.limits.command(0.5 * p.speed_m_s, 0.0)
