@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agnav_host.protocol import new_codec
+from _sil_logic import Heartbeats, PurePursuit, decode, run
+
 from agnav_host.sil import Firmware, HostEndpoint, SilConfig, SilSession
 from agnav_host.sim import load_scenario
 from agnav_host.sim.sensors import EncoderSpec, SonarRing, WheelEncoder
@@ -31,40 +32,6 @@ REPO = HERE.parents[1]
 LAYER_FAILSAFE, LAYER_AVOID, LAYER_FOLLOW_WALL = 1, 2, 4
 REASON_LINK_LOSS, REASON_STOP, REASON_BACKOFF, REASON_WAIT = 2, 5, 6, 7
 UART_BYTE_US = 170.0  # 10 bits at UBRR0 = 33, U2X0: 16 MHz / 8 / 34 = 58.8 kbit/s
-
-
-def decode(data: bytes):
-    return new_codec().parse_buffer(data) or []
-
-
-def run(fw: Firmware, us: int) -> bytes:
-    """Run us microseconds (triggers unanswered), draining the UART as a radio would."""
-    end = fw.time_us + us
-    out = bytearray()
-    while fw.time_us < end:
-        fw.step_to(min(end, fw.time_us + 50_000))
-        fw.take_triggers()
-        out += fw.uart_read()
-    return bytes(out)
-
-
-class Heartbeats:
-    def __init__(self, period_s: float = 0.1, setpoint: tuple[int, int] | None = None,
-                 follow_wall: bool = False) -> None:
-        self.period_us = int(period_s * 1e6)
-        self.next = 0
-        self.setpoint = setpoint
-        self.follow_wall = follow_wall
-
-    def __call__(self, s: SilSession, t_us: int) -> None:
-        if self.follow_wall:
-            s.host.set_behaviours(follow_wall=True)
-            self.follow_wall = False
-        if t_us >= self.next:
-            self.next += self.period_us
-            s.host.heartbeat()
-            if self.setpoint is not None:
-                s.host.setpoint(*self.setpoint)
 
 
 def session(name: str, logic, backend: str = "avr", start: Pose2D | None = None, exact_sonar: bool = False,
@@ -231,26 +198,6 @@ def test_avr_sonar_echo_width_becomes_range():
 
 
 # ---- scenarios --------------------------------------------------------------------------------------
-class PurePursuit:
-    def __init__(self) -> None:
-        self.next = 0
-
-    def __call__(self, s: SilSession, t_us: int) -> None:
-        if t_us < self.next:
-            return
-        self.next += 66_000  # 15 Hz
-        s.host.heartbeat()
-        pose = s.believed_pose()
-        if pose is None:
-            return
-        g = s.sc.goals[0]
-        dx, dy = g.x_m - pose.x_m, g.y_m - pose.y_m
-        d = math.hypot(dx, dy)
-        alpha = (math.atan2(dy, dx) - pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi
-        steer = math.atan2(2.0 * s.sc.robot_params.track_m * math.sin(alpha), max(d, 0.3))
-        s.host.setpoint_si(steer, 0.0 if d < 0.05 else min(0.4, 0.2 + d))
-
-
 def test_avr_drive_to_waypoint():
     """Host pure pursuit on the AVR firmware's odometry to (3.0, 1.5): arrives within 0.15 m."""
     s = session("open_field", PurePursuit())

@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from _sil_logic import decode, run
+
 from agnav_host.protocol import dialect
 
 from agnav_host.protocol import new_codec
@@ -18,24 +20,9 @@ from agnav_host.sim.sensors import EncoderSpec, SonarRing, WheelEncoder
 from agnav_host.types import Pose2D
 
 
-def decode(data: bytes):
-    return new_codec().parse_buffer(data) or []
-
-
 @pytest.fixture(scope="module", autouse=True)
 def lib():
     return build_library()
-
-
-def run(fw: Firmware, us: int) -> bytes:
-    """Run us microseconds (triggers unanswered), draining the UART every 50 ms as a radio would."""
-    end = fw.time_us + us
-    out = bytearray()
-    while fw.time_us < end:
-        fw.step_to(min(end, fw.time_us + 50_000))
-        fw.take_triggers()
-        out += fw.uart_read()
-    return bytes(out)
 
 
 def test_behaviour_status_reports_a_change_in_the_tick_it_happens():

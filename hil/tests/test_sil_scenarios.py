@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from _sil_logic import Heartbeats, PurePursuit
+
 from agnav_host.sil import LinkParams, SilConfig, SilSession, run_sil_scenario
 from agnav_host.sim import load_scenario
 
@@ -22,29 +24,6 @@ SCEN = HERE / "scenarios"
 
 LAYER_FAILSAFE, LAYER_AVOID, LAYER_FOLLOW_WALL, LAYER_HOST = 1, 2, 4, 5
 REASON_LINK_LOSS, REASON_STOP, REASON_BACKOFF, REASON_WAIT, REASON_CANYON = 2, 5, 6, 7, 11
-
-
-class Heartbeats:
-    """Host logic: heartbeats (and optionally a fixed setpoint) every ``period_s``; optional
-    behaviour enable sent once at start."""
-
-    def __init__(self, period_s: float = 0.1, setpoint: tuple[int, int] | None = None,
-                 follow_wall: bool = False) -> None:
-        self.period_us = int(period_s * 1e6)
-        self.next = 0
-        self.setpoint = setpoint
-        self.follow_wall = follow_wall
-        self.enabled = False
-
-    def __call__(self, s: SilSession, t_us: int) -> None:
-        if self.follow_wall and not self.enabled:
-            s.host.set_behaviours(follow_wall=True)
-            self.enabled = True
-        if t_us >= self.next:
-            self.next += self.period_us
-            s.host.heartbeat()
-            if self.setpoint is not None:
-                s.host.setpoint(*self.setpoint)
 
 
 def session(name: str, logic, seed: int = 0, **cfg) -> SilSession:
@@ -56,28 +35,6 @@ def session(name: str, logic, seed: int = 0, **cfg) -> SilSession:
 
 def test_drive_to_waypoint():
     """Host pure pursuit on the firmware's odometry to (3.0, 1.5): arrives within 0.15 m."""
-
-    class PurePursuit:
-        def __init__(self) -> None:
-            self.next = 0
-
-        def __call__(self, s: SilSession, t_us: int) -> None:
-            if t_us < self.next:
-                return
-            self.next += 66_000  # 15 Hz
-            s.host.heartbeat()
-            pose = s.believed_pose()
-            if pose is None:
-                return
-            g = s.sc.goals[0]
-            dx, dy = g.x_m - pose.x_m, g.y_m - pose.y_m
-            d = math.hypot(dx, dy)
-            alpha = math.atan2(dy, dx) - pose.yaw_rad
-            alpha = (alpha + math.pi) % (2 * math.pi) - math.pi
-            track = s.sc.robot_params.track_m
-            steer = math.atan2(2.0 * track * math.sin(alpha), max(d, 0.3))
-            speed = 0.0 if d < 0.05 else min(0.4, 0.2 + d)
-            s.host.setpoint_si(steer, speed)
 
     s = session("open_field", PurePursuit())
     try:
