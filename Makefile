@@ -16,9 +16,9 @@ export PLATFORMIO_SETTING_CHECK_PLATFORMIO_INTERVAL := 3650
 
 APT_PACKAGES := gcc-avr avr-libc avrdude simavr libsimavr-dev libelf-dev \
                 gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm \
-                binutils-avr pkg-config
+                binutils-avr pkg-config clang libclang-rt-dev
 
-.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil clean
+.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil faults clean
 
 help:
 	@echo "make demo   - install what is missing, run the default mission (output in out/demo)"
@@ -26,6 +26,7 @@ help:
 	@echo "make setup  - only install (Debian packages, .venv, PlatformIO offline pieces)"
 	@echo "make size   - AVR flash/RAM use of the firmware (avr-size)"
 	@echo "make bench  - benchmarks (figures go to BENCHMARKS.md by hand)"
+	@echo "make faults - fault-injection suite: fault, expected reaction, measured reaction, pass/fail"
 
 setup: apt venv tools
 
@@ -76,6 +77,11 @@ test-sil: setup sil
 
 bench-sil: setup sil
 	$(PY) bench/bench_sil.py
+
+# Every fault scenario (radio, sensors, controller, bad commands, signing, host I/O) with its
+# measured reaction; the markdown table goes to bench/results/faults.md (RELIABILITY.md cites it).
+faults: setup sil
+	$(VENV)/bin/agnav faults --markdown bench/results/faults.md
 
 size: setup
 	$(PIO) run -s -e megaatmega2560

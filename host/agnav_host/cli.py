@@ -87,6 +87,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "agnav_host.planning.timed_commands",
     "agnav_host.link.commands",
     "agnav_host.sil.commands",
+    "agnav_host.faults.commands",
 )
 
 
@@ -203,19 +204,48 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         result = sil.run
         if not ns.quiet:
             print(file=sys.stderr)
-        paths = write_sil_outputs(sil, ns.out, plot=not ns.no_plot)
+        write = lambda: write_sil_outputs(sil, ns.out, plot=not ns.no_plot)  # noqa: E731
     else:
         result = run_scenario(sc, ns.planner, ns.seed, ns.duration, goal, None if ns.quiet else progress)
         if not ns.quiet:
             print(file=sys.stderr)
-        paths = write_outputs(result, ns.out, plot=not ns.no_plot)
-    if not getattr(ns, "no_rrd", False):
-        paths += _sim_recordings(sc, result, ns.out)
+        write = lambda: write_outputs(result, ns.out, plot=not ns.no_plot)  # noqa: E731
+    try:
+        paths = write()
+        if not getattr(ns, "no_rrd", False):
+            paths += _sim_recordings(sc, result, ns.out)
+    except (OSError, RuntimeError) as e:  # disk full, output folder not writable, recorder died
+        return _report_write_failure("sim", ns.out, e)
     m = result.metrics
     print(f"{sc.name}: {result.end_reason}, success={m.success}, time={m.time_s:.2f} s, path={m.path_length_m:.2f} m")
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _report_write_failure(cmd: str, out: str, err: BaseException) -> int:
+    """A run whose results could not all be written (disk full, read-only folder...): say so
+    plainly and list what was kept, instead of a traceback."""
+    from pathlib import Path
+
+    why = getattr(err, "strerror", None) or str(err)
+    where = getattr(err, "filename", None)
+    print(f"agnav {cmd}: could not write the results{f' ({where})' if where else ''}: {why}", file=sys.stderr)
+    try:
+        import shutil
+
+        free = shutil.disk_usage(out).free
+        if free < 1 << 20:
+            print(f"agnav {cmd}: the disk holding {out} is full ({free} B free)", file=sys.stderr)
+    except OSError:
+        pass
+    kept = sorted(p for p in Path(out).glob("*") if p.is_file() and p.stat().st_size > 0) if Path(out).is_dir() else []
+    if kept:
+        print(f"agnav {cmd}: kept {len(kept)} file(s): " + ", ".join(f"{p.name} ({p.stat().st_size} B)" for p in kept),
+              file=sys.stderr)
+    else:
+        print(f"agnav {cmd}: nothing was written", file=sys.stderr)
+    return 1
 
 
 def _sim_recordings(sc: Any, result: Any, out: str) -> list:

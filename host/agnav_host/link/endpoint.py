@@ -197,6 +197,7 @@ class Endpoint:
         self.events: deque[tuple[float, str]] = deque(maxlen=500)
         self.on_event = on_event
         self.tlog: TlogWriter | None = TlogWriter(tlog) if tlog else None
+        self._tlog_error_reported = False
         self._conn: Any = None
         self._broken = False
         self._send_lock = threading.Lock()
@@ -399,6 +400,10 @@ class Endpoint:
                 self.stats.budget_warnings += 1
                 self._event(f"telemetry over budget: {rate:.0f} B/s received > {self.budget_bytes_s:.0f} B/s",
                             logging.WARNING)
+        tl = self.tlog
+        if tl is not None and tl.error is not None and not self._tlog_error_reported:
+            self._tlog_error_reported = True  # the link goes on; the log keeps what was written before
+            self._event(f"telemetry log stopped: {tl.error} ({tl.frames} frames kept)", logging.ERROR)
         if self.stats.link_up and self._last_rx is not None and now - self._last_rx > self.link_timeout_s:
             self.stats.link_up = False
             self.stats.link_losses += 1

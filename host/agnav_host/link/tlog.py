@@ -27,29 +27,51 @@ class TlogWriter:
         self._last_flush = time.monotonic()
         self.frames = 0
         self.bytes = 0
+        self.frames_dropped = 0  # not written because the file failed (disk full, I/O error)
+        self.error: str | None = None  # the first write error; the log stops growing after it
+
+    def _failed(self, e: OSError) -> None:
+        if self.error is None:
+            self.error = f"{self.path}: {e.strerror or e}"
+            try:  # keep what made it to the disk; the buffered rest is gone
+                self._f.close()
+            except OSError:
+                pass
 
     def write(self, frame: bytes | bytearray, t_s: float | None = None) -> None:
         usec = int((time.time() if t_s is None else t_s) * 1e6) & ~3  # mavutil masks the low bits too
         with self._lock:
             if self._f.closed:
+                if self.error is not None:
+                    self.frames_dropped += 1
                 return
-            self._f.write(struct.pack(">Q", usec) + bytes(frame))
-            self.frames += 1
-            self.bytes += len(frame) + 8
-            now = time.monotonic()
-            if now - self._last_flush >= self._flush_every_s:
-                self._f.flush()
-                self._last_flush = now
+            try:
+                self._f.write(struct.pack(">Q", usec) + bytes(frame))
+                self.frames += 1
+                self.bytes += len(frame) + 8
+                now = time.monotonic()
+                if now - self._last_flush >= self._flush_every_s:
+                    self._f.flush()
+                    self._last_flush = now
+            except OSError as e:  # disk full: the link must go on, the log stops here
+                self.frames_dropped += 1
+                self._failed(e)
 
     def flush(self) -> None:
         with self._lock:
             if not self._f.closed:
-                self._f.flush()
+                try:
+                    self._f.flush()
+                except OSError as e:
+                    self._failed(e)
 
     def close(self) -> None:
         with self._lock:
             if not self._f.closed:
-                self._f.close()
+                try:
+                    self._f.close()
+                except OSError as e:
+                    self._failed(e)
 
     def __enter__(self) -> "TlogWriter":
         return self

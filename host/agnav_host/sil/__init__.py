@@ -16,10 +16,10 @@ from .avr_build import AVR_ELF_PATH, AVR_LIB_PATH, build_avr_elf, build_avr_libr
 from .binding import BACKENDS, Firmware, Outputs
 from .build import LIB_PATH, SilBuildError, build_library
 from .host import HostEndpoint
-from .link import LinkChannel, LinkParams, MavFramer, Tlog
+from .link import LinkChannel, LinkFaults, LinkParams, MavFramer, Tlog, random_bursts
 from .plant import Plant, PlantConfig, hbridge_table
 from .session import PlannerHost, SilConfig, SilRunResult, SilSession, run_sil_scenario, write_sil_outputs
 
 __all__ = ["AVR_ELF_PATH", "AVR_LIB_PATH", "BACKENDS", "build_avr_elf", "build_avr_library", "Firmware", "Outputs", "LIB_PATH", "SilBuildError", "build_library", "HostEndpoint", "LinkChannel",
-           "LinkParams", "MavFramer", "Tlog", "Plant", "PlantConfig", "hbridge_table", "PlannerHost", "SilConfig",
+           "LinkFaults", "LinkParams", "random_bursts", "MavFramer", "Tlog", "Plant", "PlantConfig", "hbridge_table", "PlannerHost", "SilConfig",
            "SilRunResult", "SilSession", "run_sil_scenario", "write_sil_outputs"]

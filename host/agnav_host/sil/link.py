@@ -8,6 +8,12 @@ per second (57600 baud = 5760 B/s, one frame after the other), held in a transmi
 their own packet. Everything is in integer microseconds of simulated time, so a run is exactly
 reproducible.
 
+Faults (:class:`LinkFaults`, set per direction): outage windows in which everything that goes on
+air is lost (a dead radio, or one burst of interference), latency spikes (frames sent inside a
+window arrive ``extra_s`` late; the radio stays first-in first-out, so frames behind a late one
+wait for it), and random loss bursts (:func:`random_bursts`: Poisson arrivals, exponential
+lengths, drawn once from a seed). ``LinkChannel.down`` cuts the channel from now on.
+
 :class:`Tlog` writes what the radio carried, both ways, in the MAVProxy ``.tlog`` layout: for every
 frame an 8-byte big-endian timestamp in microseconds (simulated time since boot here, not Unix
 time) followed by the raw frame. ``pymavlink.mavutil.mavlink_connection(path)`` reads it.
@@ -23,7 +29,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-__all__ = ["LinkParams", "MavFramer", "LinkChannel", "Tlog", "split_frames"]
+__all__ = ["LinkParams", "LinkFaults", "random_bursts", "MavFramer", "LinkChannel", "Tlog", "split_frames"]
 
 _U64 = struct.Struct(">Q")  # .tlog record time stamp
 
@@ -44,6 +50,53 @@ class LinkParams:
     @property
     def bytes_per_s(self) -> float:
         return self.baud / 10.0  # 8N1: 10 bits per byte
+
+
+Window = tuple[float, float]  # [start_s, end_s) in simulated seconds
+
+
+@dataclass(frozen=True)
+class LinkFaults:
+    """Scheduled faults of one direction, times in seconds of the session clock (``SilSession.t_s``)."""
+
+    outages: tuple[Window, ...] = ()  # everything sent inside a window is lost
+    latency_spikes: tuple[tuple[float, float, float], ...] = ()  # (start_s, end_s, extra_latency_s)
+
+    def __post_init__(self) -> None:
+        for w in self.outages:
+            if len(w) != 2 or not w[0] < w[1]:
+                raise ValueError(f"outage window must be (start_s, end_s) with start < end, got {w!r}")
+        for w in self.latency_spikes:
+            if len(w) != 3 or not w[0] < w[1] or w[2] < 0:
+                raise ValueError(f"latency spike must be (start_s, end_s, extra_s >= 0), got {w!r}")
+
+    def lost_at(self, t_us: int) -> bool:
+        t = t_us * 1e-6
+        return any(a <= t < b for a, b in self.outages)
+
+    def extra_latency_us(self, t_us: int) -> int:
+        t = t_us * 1e-6
+        return max((int(round(x * 1e6)) for a, b, x in self.latency_spikes if a <= t < b), default=0)
+
+
+def random_bursts(seed: int, duration_s: float, rate_hz: float, mean_length_s: float,
+                  start_s: float = 0.0) -> tuple[Window, ...]:
+    """Loss bursts as a Poisson process of ``rate_hz`` with exponential lengths of mean
+    ``mean_length_s`` between ``start_s`` and ``start_s + duration_s`` (deterministic in ``seed``)."""
+    if rate_hz <= 0 or mean_length_s <= 0 or duration_s <= 0:
+        return ()
+    rng = np.random.default_rng(seed)
+    out: list[Window] = []
+    t = start_s
+    end = start_s + duration_s
+    while True:
+        t += float(rng.exponential(1.0 / rate_hz))
+        if t >= end:
+            break
+        length = float(rng.exponential(mean_length_s))
+        out.append((t, min(end, t + length)))
+        t += length
+    return tuple(out)
 
 
 class MavFramer:
@@ -97,6 +150,8 @@ class LinkChannel:
         self._seq = 0
         self._tlog = tlog
         self.down = False  # True: everything sent is lost (link cut)
+        self.faults: LinkFaults | None = None
+        self._last_deliver_us = 0  # first in, first out even through a latency spike
         self.frames_sent = 0
         self.frames_lost = 0
         self.frames_dropped = 0  # transmit buffer overflow
@@ -126,13 +181,22 @@ class LinkChannel:
             start = t_us if t_us > busy else busy
             busy = self._busy_until_us = start + (0 if p.baud <= 0 else int(round(n * 1e6 / bps)))
             lost = self.down or (p.loss > 0.0 and self._rng.random() < p.loss)
+            faults = self.faults
+            extra_us = 0
+            if faults is not None:
+                lost = lost or faults.lost_at(start)
+                extra_us = faults.extra_latency_us(start)
             if tlog is not None:
                 tlog.write(start, frame)  # it went on air (lost or not)
             if lost:
                 self.frames_lost += 1
                 continue
             self.bytes_sent += n
-            heapq.heappush(self._queue, (busy + latency_us, self._seq, frame))
+            deliver = busy + latency_us + extra_us
+            if deliver < self._last_deliver_us:
+                deliver = self._last_deliver_us
+            self._last_deliver_us = deliver
+            heapq.heappush(self._queue, (deliver, self._seq, frame))
             self._seq += 1
 
     def next_delivery_us(self) -> int | None:

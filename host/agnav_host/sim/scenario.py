@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -320,7 +320,10 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         m = re.search(r"line (\d+)", str(e))
-        raise ScenarioError("<toml>", int(m.group(1)) if m else None, f"TOML syntax error: {e}", source) from None
+        line = int(m.group(1)) if m else None
+        if line is None and "end of document" in str(e):  # a truncated file: the error is on its last line
+            line = max(1, len(text.splitlines()))
+        raise ScenarioError("<toml>", line, f"TOML syntax error: {e}", source) from None
     rd = _Reader(text, source)
     rd.keys(data, (), _TOP_KEYS)
     sc = rd.table(data, "scenario", (), required=True)
@@ -447,8 +450,13 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         tp: Path_ = ("tilted_laser",)
         tt = rd.table(data, "tilted_laser", ())
         rd.keys(tt, tp, {"model", "mount", "height_m", "tilt_deg", "range_std_m", "dropout_prob", "mixed_pixel_prob",
-                         "max_range_m", "no_return"})
-        tilted = TiltedLaser(_laser_spec(rd, tt, tp, "lms200"), rd.num(tt, "height_m", tp, 0.5, lo=0.0, lo_open=True),
+                         "max_range_m", "no_return", "fov_deg", "resolution_deg"})
+        tspec = _laser_spec(rd, tt, tp, "lms200")
+        # the beams: field of view and step (defaults from the model), e.g. a narrower fan across the track
+        tspec = replace(tspec, fov_rad=math.radians(rd.num(tt, "fov_deg", tp, math.degrees(tspec.fov_rad), lo=0.0, lo_open=True, hi=359.0)),
+                        resolution_rad=math.radians(rd.num(tt, "resolution_deg", tp, math.degrees(tspec.resolution_rad),
+                                                           lo=0.0, lo_open=True, hi=90.0)))
+        tilted = TiltedLaser(tspec, rd.num(tt, "height_m", tp, 0.5, lo=0.0, lo_open=True),
                              math.radians(rd.num(tt, "tilt_deg", tp, 20.0, lo=0.0, lo_open=True, hi=89.0)),
                              rd.pose(tt, "mount", tp) if "mount" in tt else Pose2D())
     sonar = None

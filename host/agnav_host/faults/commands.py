@@ -1,0 +1,51 @@
+"""``agnav faults``: run the fault-injection suite and print the table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..cli import subcommand
+
+
+def _progress(i: int, n: int, name: str) -> None:
+    w = 30
+    f = int(w * i / n) if n else w
+    end = "\n" if i >= n else ""
+    print(f"\r[{'#' * f}{'.' * (w - f)}] {i}/{n} {name:<56.56}", end=end, file=sys.stderr, flush=True)
+
+
+@subcommand(
+    "faults",
+    help="inject every fault (radio, sensors, controller, bad commands, signing, host I/O) and print "
+         "fault / expected / measured / pass",
+    args=[
+        (("--only",), {"action": "append", "default": [], "metavar": "TEXT",
+                       "help": "run the cases whose area or name contains TEXT (repeatable)"}),
+        (("--list",), {"action": "store_true", "help": "list the cases and exit"}),
+        (("--markdown",), {"default": None, "metavar": "FILE", "help": "also write the table as markdown"}),
+        (("--quiet",), {"action": "store_true", "help": "no progress bar"}),
+    ],
+)
+def _cmd_faults(ns: argparse.Namespace) -> int:
+    from . import all_cases, format_table, run_cases
+
+    cases = all_cases()
+    if ns.only:
+        keys = [k.lower() for k in ns.only]
+        cases = [c for c in cases if any(k in c.name.lower() or k == c.area for k in keys)]
+        if not cases:
+            print(f"agnav faults: no case matches {', '.join(ns.only)} (see agnav faults --list)", file=sys.stderr)
+            return 2
+    if ns.list:
+        for c in cases:
+            print(f"{c.area:10s} {c.name}")
+        return 0
+    rows = run_cases(cases, None if ns.quiet else _progress)
+    print(format_table(rows, markdown=False))
+    if ns.markdown:
+        Path(ns.markdown).parent.mkdir(parents=True, exist_ok=True)
+        Path(ns.markdown).write_text(format_table(rows, markdown=True) + "\n", encoding="utf-8")
+        print(f"wrote {ns.markdown}")
+    return 0 if all(r.outcome.passed for r in rows) else 1

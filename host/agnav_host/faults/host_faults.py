@@ -1,0 +1,298 @@
+"""Host faults: the serial cable pulled mid-run, corrupt scenario and log files, a full disk while
+recording. The host must say what went wrong in one plain line (no traceback) and keep the data it
+had before the fault.
+
+The robot on the other end is :class:`~agnav_host.link.fake.FakeRobot` (the firmware's wire
+behaviour, over TCP); a serial port is a pseudo-terminal bridged to it, and "unplugging" closes the
+pty master, which is what the kernel does to /dev/ttyACM0 when the USB cable goes. A full disk is
+a 64 KiB tmpfs where the machine allows mounting one, else a file-size limit (RLIMIT_FSIZE: the
+write fails with EFBIG instead of ENOSPC, the same code path).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import resource
+import select
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Iterator
+
+from ._core import FaultCase, FaultOutcome
+
+__all__ = ["HOST_CASES", "full_disk"]
+
+
+def _agnav(*args: str, timeout: float = 300.0, preexec=None) -> subprocess.CompletedProcess:  # noqa: ANN001
+    return subprocess.run([sys.executable, "-m", "agnav_host.cli", *args], capture_output=True, text=True,
+                          timeout=timeout, preexec_fn=preexec)
+
+
+@contextlib.contextmanager
+def full_disk(size_kib: int = 64) -> Iterator[tuple[Path, str]]:
+    """A folder on a tiny disk: (path, how) with how = "tmpfs" or "rlimit". With "rlimit" the
+    caller must apply :func:`_fsize_limit` to the writing process."""
+    d = Path(tempfile.mkdtemp(prefix="agnav-full-"))
+    mounted = False
+    if os.geteuid() == 0:
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(d)],
+                           capture_output=True, text=True)
+        mounted = r.returncode == 0
+    try:
+        yield d, "tmpfs" if mounted else "rlimit"
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(d)], capture_output=True)
+        import shutil
+
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def _fsize_limit(limit_bytes: int):  # noqa: ANN202
+    def apply() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, resource.RLIM_INFINITY))
+    return apply
+
+
+def _clean_error(p: subprocess.CompletedProcess) -> tuple[bool, str]:
+    err = p.stderr.strip()
+    lines = [ln for ln in err.splitlines() if ln.startswith("agnav")]
+    return "Traceback" not in err, (lines[0] if lines else err.splitlines()[-1] if err else "(no message)")
+
+
+# ---- corrupt scenario files -------------------------------------------------------------------------
+_BAD_SCENARIOS = {
+    "TOML syntax error": ("[scenario]\nname = \"x\"\n[robot\nmodel = \"diff_drive\"\n", "syntax"),
+    "binary garbage": ("\x00\x17\xff garbage \x01\n" * 4, "syntax"),
+    "NaN start pose": ("[scenario]\nname = \"x\"\n[robot]\nmodel = \"diff_drive\"\n"
+                       "start = { x_m = nan, y_m = 0.0, yaw_deg = 0.0 }\n[[goals]]\nx_m = 1.0\ny_m = 0.0\n", "x_m"),
+    "unknown robot model": ("[scenario]\nname = \"x\"\n[robot]\nmodel = \"hovercraft\"\n[[goals]]\nx_m = 1.0\ny_m = 0.0\n",
+                            "hovercraft"),
+    "truncated file": ("[scenario]\nname = \"x\"\n[robot]\nmodel = \"diff_drive\"\nstart = { x_m = 0.0, y_", "syntax"),
+}
+
+
+def _case_corrupt_scenarios() -> FaultOutcome:
+    res = []
+    ok_all = True
+    with tempfile.TemporaryDirectory() as d:
+        for label, (text, must) in _BAD_SCENARIOS.items():
+            f = Path(d) / "bad.toml"
+            f.write_bytes(text.encode("utf-8", "surrogateescape"))
+            p = _agnav("sim", str(f), "--out", str(Path(d) / "out"), "--quiet", "--no-rrd", "--no-plot", timeout=120)
+            clean, line = _clean_error(p)
+            import re
+
+            names_line = re.search(r"\.toml:\d+:", line) is not None
+            ok = p.returncode == 2 and clean and names_line and must.lower() in line.lower()
+            ok_all &= ok
+            res.append(f"{label}: exit {p.returncode}, \"{line[:90]}\"" + ("" if ok else " [unexpected]"))
+    return FaultOutcome("; ".join(res), ok_all)
+
+
+# ---- corrupt telemetry log -------------------------------------------------------------------------
+def _sample_tlog(path: Path, seconds: float = 2.0) -> int:
+    """Record a short tlog from the fake robot; returns the number of frames written."""
+    from ..link.endpoint import Endpoint
+    from ..link.fake import FakeRobot
+
+    with FakeRobot() as robot:
+        ep = Endpoint(robot.device, tlog=path)
+        ep.start(wait_heartbeat_s=5.0)
+        time.sleep(seconds)
+        ep.close()
+        return ep.tlog.frames if ep.tlog else 0
+
+
+def _case_corrupt_tlog() -> FaultOutcome:
+    from ..link.tlog import read_tlog
+
+    with tempfile.TemporaryDirectory() as d:
+        good = Path(d) / "good.tlog"
+        n = _sample_tlog(good)
+        raw = good.read_bytes()
+        n_good = sum(1 for _ in read_tlog(good))
+        variants = {
+            "truncated mid-frame": raw[: len(raw) * 2 // 3 + 5],
+            "garbage inserted": raw[: len(raw) // 2] + os.urandom(333) + raw[len(raw) // 2:],
+            "bytes flipped": bytes(b ^ 0x5A if i % 97 == 13 else b for i, b in enumerate(raw)),
+            "not a tlog": os.urandom(4096),
+            "empty": b"",
+        }
+        parts = [f"{n} frames recorded, {n_good} read back"]
+        ok_all = n_good >= n * 0.95
+        for label, data in variants.items():
+            f = Path(d) / "bad.tlog"
+            f.write_bytes(data)
+            p = _agnav("link", "replay", str(f), timeout=120)
+            clean, line = _clean_error(p)
+            try:
+                kept = sum(1 for _ in read_tlog(f))
+            except Exception as e:  # reading must not raise either
+                kept, clean = -1, False
+                line = f"read_tlog raised {type(e).__name__}"
+            frac = kept / max(1, n_good)
+            expect_frac = {"truncated mid-frame": 0.6, "garbage inserted": 0.95, "bytes flipped": 0.3}.get(label, 0.0)
+            ok = clean and p.returncode in (0, 2) and frac >= expect_frac
+            ok_all &= ok
+            parts.append(f"{label}: exit {p.returncode}, {kept} frames recovered" + ("" if ok else f" [unexpected: {line[:80]}]"))
+    return FaultOutcome("; ".join(parts), ok_all)
+
+
+# ---- disk full -----------------------------------------------------------------------------------------
+def _case_disk_full_sim() -> FaultOutcome:
+    with full_disk(96) as (d, how):
+        out = d / "run"
+        pre = _fsize_limit(96 * 1024) if how == "rlimit" else None
+        p = _agnav("sim", "corridor_obstacles", "--out", str(out), "--quiet", preexec=pre)
+        clean, line = _clean_error(p)
+        summary_ok = False
+        try:
+            summary_ok = "success" in json.loads((out / "summary.json").read_text())
+        except (OSError, ValueError):
+            pass
+        kept = sorted(f.name for f in out.glob("*") if f.stat().st_size > 0) if out.is_dir() else []
+        ok = p.returncode == 1 and clean and summary_ok and "full" in p.stderr + line
+        return FaultOutcome(f"({how}) exit {p.returncode}, \"{line[:80]}\"; kept {', '.join(kept) or 'nothing'}; "
+                            f"summary.json {'valid' if summary_ok else 'MISSING'}", ok)
+
+
+def _case_disk_full_tlog() -> FaultOutcome:
+    from ..link.endpoint import Endpoint
+    from ..link.fake import FakeRobot
+    from ..link.tlog import read_tlog
+
+    with full_disk(64) as (d, how), FakeRobot() as robot:
+        old = resource.getrlimit(resource.RLIMIT_FSIZE)
+        old_sig = signal.getsignal(signal.SIGXFSZ)
+        if how == "rlimit":
+            _fsize_limit(24 * 1024)()
+        else:  # fill the disk but ~24 KiB: a few seconds of telemetry
+            import shutil
+
+            room = shutil.disk_usage(d).free - 24 * 1024
+            if room > 0:
+                (d / "filler").write_bytes(b"\0" * room)
+        try:
+            ep = Endpoint(robot.device, tlog=d / "run.tlog")
+            ep.start(wait_heartbeat_s=5.0)
+            t_end = time.monotonic() + 15.0
+            while time.monotonic() < t_end and (ep.tlog is None or ep.tlog.error is None):
+                time.sleep(0.1)
+            rx_at_fill = ep.stats.rx_msgs
+            time.sleep(1.5)
+            rx_after = ep.stats.rx_msgs - rx_at_fill
+            events = [e for _, e in ep.events if "telemetry log stopped" in e]
+            alive = ep.stats.link_up
+            ep.close()
+        finally:
+            if how == "rlimit":
+                resource.setrlimit(resource.RLIMIT_FSIZE, old)
+                signal.signal(signal.SIGXFSZ, old_sig)
+        tl = ep.tlog
+        kept = sum(1 for _ in read_tlog(d / "run.tlog"))
+        ok = tl is not None and tl.error is not None and rx_after > 20 and alive and bool(events) and kept > 100
+        return FaultOutcome(f"({how}) disk full after {tl.frames if tl else 0} frames: reported once "
+                            f"(\"{events[0][:60] if events else 'NO EVENT'}\"); link kept running ({rx_after} msgs "
+                            f"in the next 1.5 s); {kept} frames readable in the file", ok)
+
+
+# ---- serial cable pulled -----------------------------------------------------------------------------
+class _PtyBridge:
+    """/dev/pts/N <-> TCP: a serial port whose far end is the fake robot."""
+
+    def __init__(self, tcp_port: int) -> None:
+        self.master, self.slave = os.openpty()
+        import tty
+
+        tty.setraw(self.slave)
+        self.path = os.ttyname(self.slave)  # the endpoint opens it by name, as it would /dev/ttyACM0
+        # (the bridge holds the slave open too: a pty whose slave side nobody holds reads EIO)
+        self.sock = socket.create_connection(("127.0.0.1", tcp_port))
+        self._stop = threading.Event()
+        self._t = threading.Thread(target=self._run, daemon=True)
+        self._t.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                r, _, _ = select.select([self.master, self.sock], [], [], 0.05)
+                if self.master in r:
+                    data = os.read(self.master, 4096)
+                    if data:
+                        self.sock.sendall(data)
+                if self.sock in r:
+                    data = self.sock.recv(4096)
+                    if not data:
+                        return
+                    os.write(self.master, data)
+            except OSError:
+                return
+
+    def unplug(self) -> None:
+        self._stop.set()
+        self._t.join(1.0)
+        os.close(self.master)
+        os.close(self.slave)
+        self.sock.close()
+
+
+def _case_serial_unplugged() -> FaultOutcome:
+    from ..link.endpoint import Endpoint
+    from ..link.fake import FakeRobot
+    from ..link.tlog import read_tlog
+
+    with tempfile.TemporaryDirectory() as d, FakeRobot() as robot:
+        port = int(robot.device.rsplit(":", 1)[1])
+        br = _PtyBridge(port)
+        log = Path(d) / "run.tlog"
+        ep = Endpoint(f"serial:{br.path}:57600", tlog=log, link_timeout_s=1.0)
+        ep.start(wait_heartbeat_s=5.0)
+        time.sleep(2.0)
+        rx_before = ep.stats.rx_msgs
+        t_unplug = time.monotonic()
+        br.unplug()
+        t_fail = t_down = None
+        while time.monotonic() - t_unplug < 4.0:
+            if t_fail is None and any("transport failed" in e for _, e in ep.events):
+                t_fail = time.monotonic() - t_unplug
+            if t_down is None and not ep.stats.link_up:
+                t_down = time.monotonic() - t_unplug
+            if t_fail is not None and t_down is not None:
+                break
+            time.sleep(0.02)
+        thread_alive = ep._thread.is_alive() if hasattr(ep, "_thread") else True  # noqa: SLF001
+        ev = next((e for _, e in ep.events if "transport failed" in e), "NO EVENT")
+        ep.close()
+        kept = sum(1 for _ in read_tlog(log))
+    ok = t_fail is not None and t_down is not None and kept >= rx_before * 0.9 and rx_before > 50 and thread_alive
+    return FaultOutcome(f"\"{ev[:70]}\" after {1000 * (t_fail or 0):.0f} ms, link marked down after "
+                        f"{1000 * (t_down or 0):.0f} ms; I/O thread kept retrying; {kept} of {rx_before} frames "
+                        f"received before the pull are in the tlog", ok)
+
+
+HOST_CASES = (
+    FaultCase("serial cable pulled mid-run (pty)", "host",
+              "transport failure reported, link marked down within link_timeout (1 s), reopen retried, tlog kept",
+              _case_serial_unplugged),
+    FaultCase("corrupt scenario files", "host",
+              "exit 2 with one line naming the line/field, no traceback", _case_corrupt_scenarios),
+    FaultCase("corrupt telemetry logs", "host",
+              "replay summarises what is readable, no traceback; valid frames around the damage recovered",
+              _case_corrupt_tlog),
+    FaultCase("disk full while writing `agnav sim` results", "host",
+              "exit 1, says the disk is full, lists the files kept; summary.json intact", _case_disk_full_sim),
+    FaultCase("disk full while recording the telemetry log", "host",
+              "error reported once, the link keeps running, the log keeps what was flushed before the disk filled "
+              "(at most the last 1 s buffer is lost)",
+              _case_disk_full_tlog),
+)
