@@ -269,4 +269,8 @@ def _sim_recordings(sc: Any, result: Any, out: str) -> list:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
+    # `python -m agnav_host.cli`: the command modules register with agnav_host.cli, not with this
+    # __main__ copy of it, so run the package's own main.
+    from agnav_host.cli import main as _main
+
+    raise SystemExit(_main())

@@ -125,7 +125,7 @@ def _case_corrupt_tlog() -> FaultOutcome:
             "truncated mid-frame": raw[: len(raw) * 2 // 3 + 5],
             "garbage inserted": raw[: len(raw) // 2] + os.urandom(333) + raw[len(raw) // 2:],
             "bytes flipped": bytes(b ^ 0x5A if i % 97 == 13 else b for i, b in enumerate(raw)),
-            "not a tlog": os.urandom(4096),
+            "not a tlog": b"id,x_m,y_m\n1,0.5,0.25\n" * 200,  # a CSV given by mistake
             "empty": b"",
         }
         parts = [f"{n} frames recorded, {n_good} read back"]
@@ -133,7 +133,7 @@ def _case_corrupt_tlog() -> FaultOutcome:
         for label, data in variants.items():
             f = Path(d) / "bad.tlog"
             f.write_bytes(data)
-            p = _agnav("link", "replay", str(f), timeout=120)
+            p = _agnav("replay", str(f), timeout=120)
             clean, line = _clean_error(p)
             try:
                 kept = sum(1 for _ in read_tlog(f))
@@ -142,9 +142,11 @@ def _case_corrupt_tlog() -> FaultOutcome:
                 line = f"read_tlog raised {type(e).__name__}"
             frac = kept / max(1, n_good)
             expect_frac = {"truncated mid-frame": 0.6, "garbage inserted": 0.95, "bytes flipped": 0.3}.get(label, 0.0)
-            ok = clean and p.returncode in (0, 2) and frac >= expect_frac
+            want_rc = 2 if label in ("not a tlog", "empty") else 0  # nothing readable: say so
+            ok = clean and p.returncode == want_rc and frac >= expect_frac
             ok_all &= ok
-            parts.append(f"{label}: exit {p.returncode}, {kept} frames recovered" + ("" if ok else f" [unexpected: {line[:80]}]"))
+            parts.append(f"{label}: exit {p.returncode}, {kept} frames recovered" + ("" if ok else f" [unexpected: {line[:80]}]")
+                         + (f" (\"{line[:60]}\")" if want_rc == 2 and ok else ""))
     return FaultOutcome("; ".join(parts), ok_all)
 
 
@@ -280,14 +282,57 @@ def _case_serial_unplugged() -> FaultOutcome:
                         f"received before the pull are in the tlog", ok)
 
 
+def _case_dead_downlink() -> FaultOutcome:
+    """`agnav run --planner subsumption` (sonar ring) drives the fake robot; its telemetry goes silent for 2 s
+    (commands still reach it): the host must stop commanding motion while it is blind."""
+    from .. import cli
+    from ..link.commands import POSE_STALE_S
+    from ..link.fake import FakeRobot
+
+    with FakeRobot() as fr:
+        rc: list[int] = []
+        t = threading.Thread(target=lambda: rc.append(cli.main(
+            ["run", "--device", fr.device, "--planner", "subsumption", "--goal", "20,0", "--duration", "7",
+             "--no-tlog"])), daemon=True)
+        samples: list[tuple[float, int]] = []  # (s since mute, speed of the newest setpoint)
+        t.start()
+        t_start = time.monotonic()
+        t_mute = t_start + 3.0
+        muted = False
+        while t.is_alive() and time.monotonic() - t_start < 20.0:
+            now = time.monotonic()
+            if not muted and now >= t_mute:
+                fr.mute = muted = True
+            if muted and fr.mute and now >= t_mute + 2.0:
+                fr.mute = False
+            sp = fr.received_of("AGNAV_DRIVE_SETPOINT")
+            if sp:
+                samples.append((now - t_mute, sp[-1].speed_mm_s))
+            time.sleep(0.02)
+        t.join(5.0)
+    before = [v for ts, v in samples if -1.0 < ts < 0.0]
+    during = [(ts, v) for ts, v in samples if 0.0 <= ts < 2.0]
+    held = next((ts for ts, v in during if v == 0 and all(w == 0 for t2, w in during if t2 >= ts)), None)
+    after = [v for ts, v in samples if 2.8 <= ts < 3.8]
+    ok = (bool(before) and all(v > 0 for v in before) and held is not None and held <= POSE_STALE_S + 0.3
+          and any(v > 0 for v in after) and rc == [0])
+    return FaultOutcome(f"driving at {max(before, default=0)} mm/s; telemetry silent -> zero setpoints "
+                        f"{'after %.0f ms' % (held * 1000) if held is not None else 'NEVER'} and held; "
+                        f"telemetry back -> driving again ({max(after, default=0)} mm/s); exit {rc[0] if rc else 'hung'}", ok)
+
+
 HOST_CASES = (
     FaultCase("serial cable pulled mid-run (pty)", "host",
               "transport failure reported, link marked down within link_timeout (1 s), reopen retried, tlog kept",
               _case_serial_unplugged),
+    FaultCase("telemetry lost during a host-planner run (downlink dead, uplink alive)", "host",
+              "the host stops commanding motion within 0.5 s (stale odometry) + 0.3 s, holds it, and plans again "
+              "when odometry returns", _case_dead_downlink),
     FaultCase("corrupt scenario files", "host",
               "exit 2 with one line naming the line/field, no traceback", _case_corrupt_scenarios),
     FaultCase("corrupt telemetry logs", "host",
-              "replay summarises what is readable, no traceback; valid frames around the damage recovered",
+              "replay summarises what is readable (exit 0), valid frames around the damage recovered; a file "
+              "with no frame at all: exit 2 and says so; never a traceback",
               _case_corrupt_tlog),
     FaultCase("disk full while writing `agnav sim` results", "host",
               "exit 1, says the disk is full, lists the files kept; summary.json intact", _case_disk_full_sim),

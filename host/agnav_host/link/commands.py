@@ -103,6 +103,16 @@ def _robot_spec(robot: Any, cfg: Any) -> Any:
                      max_steer_rad=math.radians(p["MAX_STEER_CDEG"] / 100.0))
 
 
+#: A host planner steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
+#: missed) and the planner would drive blind, so the robot is held stopped instead.
+POSE_STALE_S = 0.5
+
+
+def _pose_fresh(state: Any, now_s: float) -> bool:
+    p = state.pose
+    return p is not None and now_s - p.rx_time_s <= POSE_STALE_S
+
+
 def _observation(state: Any, goal: Any, t_s: float) -> Any:
     import numpy as np
 
@@ -199,6 +209,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         if rec is not None and goal is not None:
             rec.log_goal(goal.x_m, goal.y_m)
         period = 1.0 / cfg.run.control_hz
+        blind = False
         next_status = 0.0
         last_layer = None
         print(f"running: {'planner ' + planner_name if planner_name else 'firmware layers'}"
@@ -210,6 +221,18 @@ def _cmd_run(ns: argparse.Namespace) -> int:
                 print("duration reached")
                 break
             st = ep.state
+            if planner is not None and not _pose_fresh(st, time.monotonic()):
+                # The downlink is silent: planning on a stale pose would drive blind. Hold the
+                # robot (stop setpoints also keep the firmware's link alive) until odometry returns.
+                if not blind:
+                    blind = True
+                    _err("run", f"no odometry for > {POSE_STALE_S:.1f} s: holding the robot stopped until telemetry returns")
+                robot.stop()
+                _sleep(period)
+                continue
+            if blind:
+                blind = False
+                print(f"odometry back at t={t:.1f} s: planning again", file=sys.stderr, flush=True)
             if planner is not None:
                 obs = _observation(st, goal, t)
                 if math.hypot(goal.x_m - obs.pose.x_m, goal.y_m - obs.pose.y_m) <= goal.tolerance_m:
@@ -372,6 +395,10 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
         _err("replay", f"{ns.log}: no such file")
         return 2
     s = summarize_tlog(ns.log)
+    if not s.rx_msgs and not s.tx_msgs:
+        size = Path(ns.log).stat().st_size
+        _err("replay", f"{ns.log}: no MAVLink frames in {size} B (empty, or not a .tlog telemetry log)")
+        return 2
     print(s.text(ns.budget))
     if ns.png:
         from ..viz.plots import plot_run
