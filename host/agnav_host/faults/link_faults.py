@@ -54,7 +54,8 @@ class DriveTrace:
     x_m: list[float] = field(default_factory=list)
     speed_m_s: list[float] = field(default_factory=list)
     deliveries_us: list[int] = field(default_factory=list)  # uplink frames reaching the firmware's UART
-    statuses: list[tuple[int, int, int]] = field(default_factory=list)  # (t_us, layer, reason) the host saw
+    statuses: list[tuple[int, int, int, int]] = field(default_factory=list)  # (t_us, layer, reason, failsafe flags) the host saw
+    texts: list[tuple[int, str]] = field(default_factory=list)  # STATUSTEXT the host saw
     t0_us: int = 0
     link: dict[str, int] = field(default_factory=dict)
 
@@ -87,13 +88,17 @@ class DriveTrace:
 
 def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, up_faults=None, down_faults=None,  # noqa: ANN001
                            driver: _Driver | None = None, cut_at_s: float | None = None,
-                           restore_at_s: float | None = None) -> DriveTrace:
-    """Run the SIL with the given uplink faults and return the trace (see :class:`DriveTrace`)."""
+                           restore_at_s: float | None = None, events=(), firmware_params=()) -> DriveTrace:  # noqa: ANN001
+    """Run the SIL with the given uplink faults and return the trace (see :class:`DriveTrace`).
+    ``events``: (t_s, fn(session)) called once when the session clock passes t_s after provisioning
+    (fault injection into the firmware's hardware)."""
     from ..sil import LinkParams, SilConfig, SilSession
     from ..sim import load_scenario
 
     sc = load_scenario("fault_yard")
-    cfg = SilConfig(world_dt_s=DT_S, record_outputs=False, uplink=LinkParams(loss=loss))
+    cfg = SilConfig(world_dt_s=DT_S, record_outputs=False, uplink=LinkParams(loss=loss),
+                    firmware_params=tuple(firmware_params))
+    pending = sorted(events, key=lambda e: e[0])
     drv = driver or _Driver()
     s = SilSession(sc, seed, cfg, drv)
     tr = DriveTrace()
@@ -113,8 +118,11 @@ def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, 
         s.up.receive = receive  # type: ignore[method-assign]
         end = s.t_us + int(duration_s * 1e6)
         n_status = len(s.host.status_log)
+        n_text = len(s.host.statustexts)
         while s.t_us < end:
             t_rel = (s.t_us - tr.t0_us) * 1e-6
+            while pending and t_rel >= pending[0][0]:
+                pending.pop(0)[1](s)
             if cut_at_s is not None and t_rel >= cut_at_s and not s.up.down and (restore_at_s is None or t_rel < restore_at_s):
                 s.up.down = s.down.down = True
             if restore_at_s is not None and t_rel >= restore_at_s and s.up.down:
@@ -126,8 +134,10 @@ def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, 
             tr.x_m.append(s.pose.x_m)
             tr.speed_m_s.append(s.plant.robot.speed_m_s)
             for st in s.host.status_log[n_status:]:
-                tr.statuses.append((st.t_us, st.layer, st.reason))
+                tr.statuses.append((st.t_us, st.layer, st.reason, st.failsafe_flags))
             n_status = len(s.host.status_log)
+            tr.texts += s.host.statustexts[n_text:]
+            n_text = len(s.host.statustexts)
         tr.link = {"up_sent": s.up.frames_sent, "up_lost": s.up.frames_lost}
     finally:
         s.close()
