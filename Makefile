@@ -18,7 +18,7 @@ APT_PACKAGES := gcc-avr avr-libc avrdude simavr libsimavr-dev libelf-dev \
                 gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm \
                 binutils-avr pkg-config clang libclang-rt-dev
 
-.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil faults clean
+.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil faults fuzz clean
 
 help:
 	@echo "make demo   - install what is missing, run the default mission (output in out/demo)"
@@ -26,6 +26,7 @@ help:
 	@echo "make setup  - only install (Debian packages, .venv, PlatformIO offline pieces)"
 	@echo "make size   - AVR flash/RAM use of the firmware (avr-size)"
 	@echo "make bench  - benchmarks (figures go to BENCHMARKS.md by hand)"
+	@echo "make fuzz SECONDS=N - libFuzzer on the firmware's MAVLink link for N s (needs clang)"
 	@echo "make faults - fault-injection suite: fault, expected reaction, measured reaction, pass/fail"
 
 setup: apt venv tools
@@ -82,6 +83,12 @@ bench-sil: setup sil
 # measured reaction; the markdown table goes to bench/results/faults.md (RELIABILITY.md cites it).
 faults: setup sil
 	$(VENV)/bin/agnav faults --markdown bench/results/faults.md
+
+# libFuzzer + ASan + UBSan on the firmware's MAVLink parser and handlers (firmware/fuzz/): builds
+# with clang into build/fuzz, runs SECONDS (default 60; MODE=both|crc|raw, WORKERS=1) and prints
+# executions, exec/s and findings; exits non-zero when anything was found (build/fuzz/artifacts).
+fuzz: setup
+	nice -n 10 $(PY) firmware/fuzz/fuzz.py run --seconds $(or $(SECONDS),60) --mode $(or $(MODE),both) --workers $(or $(WORKERS),1)
 
 size: setup
 	$(PIO) run -s -e megaatmega2560

@@ -1,7 +1,7 @@
 """Perception benchmark: closed-loop row following, proximity following, hole detection, latency.
 
-Run:  .venv/bin/python bench/bench_perception.py            (all, about a minute)
-      .venv/bin/python bench/bench_perception.py --only rows,proximity,holes,latency
+Run:  .venv/bin/python bench/bench_perception.py            (all, a few minutes)
+      .venv/bin/python bench/bench_perception.py --only rows,proximity,holes,ruts,hole_field,latency
 Everything is seeded; the figures go to bench/results/perception.md by hand.
 
 * rows: five runs per detection method ("clean": reached the row end without touching a crop plant;
@@ -19,7 +19,16 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
 * holes: the five hole sizes of ref 000 table 5-I, each approached head-on and at 30 deg from three
   seeded starts; "detected" = a hole cell reported inside the true hole while the robot's front is
   still outside it.
+* ruts: the built-in ruts scenario (two ruts 1.5 m apart along y = sin(2 pi x / 16)) run by the simulator's
+  runner with the tilted laser as a scenario sensor and the rut follower in closed loop; lateral error = signed
+  distance from the ruts' true midline (the world's polyline), every physics step past x = 3 m (the capture:
+  the robot starts 0.14-0.33 m off the midline, 9 deg off its direction).
+* hole_field: the built-in hole_field (holes of ref 000 in the way to a goal 24 m ahead) run by the runner, the
+  goal-seeking stand-in without and with GroundGuard (the tilted laser's holes as posts in its scan); the
+  robot's disc's nearest approach to each hole's rim, from the world's hole shapes.
 * latency: median wall time of detection + one control step on an 811-beam TiM561 scan in a row field.
+
+Figures of the closed-loop tilted-laser runs go to ``--plots DIR`` (default bench/results/perception/).
 """
 
 from __future__ import annotations
@@ -285,6 +294,152 @@ def bench_holes(seeds: tuple[int, ...] = (0, 1, 2)) -> list[dict[str, object]]:
     return results
 
 
+def signed_offset_m(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Signed distance (m) of points from a polyline, left of its direction positive."""
+    a, d = line[:-1], np.diff(line, axis=0)
+    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
+    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / (d**2).sum(axis=1)[None, :], 0.0, 1.0)
+    ex, ey = qx - u * d[None, :, 0], qy - u * d[None, :, 1]
+    j = np.argmin(np.hypot(ex, ey), axis=1)
+    i = np.arange(len(j))
+    return np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
+
+
+RUTS_SETTLE_X_M = 3.0  # ruts: samples before the robot passes this x are the capture
+
+
+def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, object]]:
+    """The built-in ``ruts`` scenario in the simulator's runner (tilted laser as a scenario sensor), the rut
+    follower in closed loop; seed n starts n * 0.05 m further left (0.15-0.35 m) and draws its own noise.
+    Lateral error = signed distance of the robot's reference point from the true midline (the ruts' centre
+    polyline in the world), every physics step once the robot is past x = RUTS_SETTLE_X_M."""
+    from agnav_host.perception import RutFollower, RutFollowerParams
+    from agnav_host.sim.runner import run_scenario
+
+    base = load_scenario("ruts")
+    assert base.tilted_laser is not None
+    tl = base.tilted_laser
+    mid = np.asarray(base.world.ruts[0].points)
+    out = []
+    for seed in seeds:
+        sc = replace(base, start=replace(base.start, y_m=base.start.y_m + 0.05 * seed))
+        ctrl = RutFollower(RutFollowerParams(tilted=TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)))
+        res = run_scenario(sc, "rut_follower", seed=seed, controller=ctrl)
+        tr = res.trajectory
+        e = signed_offset_m(tr[:, 1], tr[:, 2], mid)
+        keep = tr[:, 1] > RUTS_SETTLE_X_M
+        out.append({"seed": seed, "start_e": float(e[0]), "end": res.end_reason, "x_end": float(tr[-1, 1]),
+                    "mean_abs": float(np.abs(e[keep]).mean()), "sd": float(e[keep].std()),
+                    "max_abs": float(np.abs(e[keep]).max()), "traj": tr})
+    return out
+
+
+def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, object]]:
+    """The built-in ``hole_field`` (three holes of ref 000 in the way to a goal 24 m ahead) in the simulator's
+    runner: the goal-seeking stand-in reads only the horizontal laser; wrapped in GroundGuard, the tilted laser's
+    holes reach it as posts. Clearance = nearest approach of the robot's disc (radius from the scenario) to each
+    hole's rim, from the world's hole shapes."""
+    from agnav_host.perception import GroundGuard, GroundGuardParams
+    from agnav_host.sim.controller import make_standin
+    from agnav_host.sim.runner import _standin_params, run_scenario
+
+    sc = load_scenario("hole_field")
+    assert sc.tilted_laser is not None
+    tl = sc.tilted_laser
+    r = sc.robot_params.radius_m
+    out = []
+    for seed in seeds:
+        plain = run_scenario(sc, "goal_seek", seed=seed)
+        guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)),
+                            GroundGuardParams(TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)))
+        res = run_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard)
+        tr = res.trajectory
+        clear = [_disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], r, h) for h in sc.world.holes]
+        out.append({"seed": seed, "plain_end": plain.end_reason, "plain_x": float(plain.trajectory[-1, 1]),
+                    "end": res.end_reason, "t_s": float(tr[-1, 0]), "length_m": float(res.metrics.path_length_m),
+                    "clearance_m": clear, "detections": guard.detections, "traj": tr})
+    return out
+
+
+def _disc_clearance_to_hole_m(px: np.ndarray, py: np.ndarray, radius_m: float, hole: Hole, grid_m: float = 0.02) -> float:
+    """Smallest distance from the disc's edge (centre (px, py), radius) to any point of the hole, m
+    (negative: the disc overlaps the hole). The hole is sampled on a ``grid_m`` grid."""
+    xs = np.arange(-hole.size_x_m / 2, hole.size_x_m / 2 + 1e-9, grid_m)
+    ys = np.arange(-hole.size_y_m / 2, hole.size_y_m / 2 + 1e-9, grid_m)
+    lx, ly = (a.ravel() for a in np.meshgrid(xs, ys))
+    if hole.elliptic:
+        m = (lx / (hole.size_x_m / 2)) ** 2 + (ly / (hole.size_y_m / 2)) ** 2 <= 1.0
+        lx, ly = lx[m], ly[m]
+    c, s = math.cos(hole.yaw_rad), math.sin(hole.yaw_rad)
+    hx, hy = hole.x_m + c * lx - s * ly, hole.y_m + s * lx + c * ly
+    # only the samples near the path matter: thin both out first
+    best = math.inf
+    for k in range(0, len(px), 200):
+        d = np.hypot(px[k:k + 200, None] - hx[None, :], py[k:k + 200, None] - hy[None, :])
+        best = min(best, float(d.min()))
+    return best - radius_m
+
+
+def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[dict[str, object]] | None) -> list[str]:
+    """Trajectory figures of the closed-loop tilted-laser runs (PNG); [] when matplotlib is missing."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return []
+    from pathlib import Path
+
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    written = []
+    if ruts:
+        sc = load_scenario("ruts")
+        rut = sc.world.ruts[0]
+        mid = np.asarray(rut.points)
+        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 6), gridspec_kw={"height_ratios": [2, 1]})
+        tan = np.gradient(mid, axis=0)
+        nrm = np.column_stack((-tan[:, 1], tan[:, 0])) / np.hypot(tan[:, 0], tan[:, 1])[:, None]
+        for off in (-rut.spacing_m / 2, rut.spacing_m / 2):
+            g = mid + off * nrm
+            ax.fill_between(g[:, 0], g[:, 1] - rut.width_m / 2, g[:, 1] + rut.width_m / 2, color="0.8", lw=0)
+        ax.plot(mid[:, 0], mid[:, 1], "k--", lw=0.8, label="midline (world)")
+        for r in ruts:
+            tr = r["traj"]  # type: ignore[index]
+            ax.plot(tr[:, 1], tr[:, 2], lw=0.8, label=f"seed {r['seed']}")  # type: ignore[index]
+            e = signed_offset_m(tr[:, 1], tr[:, 2], mid)  # type: ignore[index]
+            ax2.plot(tr[:, 1], 100 * e, lw=0.8)  # type: ignore[index]
+        ax2.axvline(RUTS_SETTLE_X_M, color="0.5", lw=0.6)
+        ax.set_aspect("equal")
+        ax.legend(fontsize=6, ncol=3)
+        ax.set_title("ruts: rut following with the tilted laser (grey: the ruts)")
+        ax2.set_xlabel("x, m")
+        ax2.set_ylabel("lateral error, cm")
+        fig.tight_layout()
+        fig.savefig(f"{out_dir}/ruts.png", dpi=110)
+        plt.close(fig)
+        written.append(f"{out_dir}/ruts.png")
+    if holes:
+        sc = load_scenario("hole_field")
+        fig, ax = plt.subplots(figsize=(9, 5))
+        xx, yy = np.meshgrid(np.arange(-1, 26, 0.05), np.arange(-6, 6, 0.05))
+        z = sc.world.ground_height_m(xx, yy)
+        ax.contourf(xx, yy, z, levels=[-3, -0.1, 0.05, 1], colors=["0.3", "white", "0.85"])
+        for r in holes:
+            tr = r["traj"]  # type: ignore[index]
+            ax.plot(tr[:, 1], tr[:, 2], lw=0.8, label=f"seed {r['seed']} ({r['end']})")  # type: ignore[index]
+        g = sc.goals[-1]
+        ax.plot(g.x_m, g.y_m, "r*", ms=10)
+        ax.set_aspect("equal")
+        ax.legend(fontsize=6)
+        ax.set_title("hole_field: goal seeking with GroundGuard (dark: holes; light: kerb)")
+        fig.tight_layout()
+        fig.savefig(f"{out_dir}/hole_field.png", dpi=110)
+        plt.close(fig)
+        written.append(f"{out_dir}/hole_field.png")
+    return written
+
+
 def bench_latency(repeats: int = 400) -> dict[str, float]:
     from agnav_host.sim.sensors import Laser2D, laser_preset
 
@@ -310,10 +465,14 @@ def bench_latency(repeats: int = 400) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="rows,proximity,holes,latency")
+    ap.add_argument("--only", default="rows,proximity,holes,ruts,hole_field,latency")
     ap.add_argument("--methods", default=",".join(row_method_names()))
+    ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
+                    help="where the closed-loop figures go (PNG; '' for none)")
     ns = ap.parse_args(argv)
     parts = set(ns.only.split(","))
+    ruts_res: list[dict[str, object]] | None = None
+    holes_res: list[dict[str, object]] | None = None
     if "rows" in parts:
         res = bench_rows(ns.methods.split(","))
         print("## Row following, 8 m lane, rows 0.75 m apart, TiM310-like, 10 % gaps, weeds (5 runs)")
@@ -353,6 +512,30 @@ def main(argv: list[str] | None = None) -> int:
         tot = sum(bool(r["detected"]) for r in hr)
         print(f"| all | | {tot}/{len(hr)} ({100.0 * tot / len(hr):.0f} %) | |")
         sys.stdout.flush()
+    if "ruts" in parts:
+        ruts_res = bench_ruts()
+        print(f"\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser in the runner")
+        print(f"(lateral error to the true midline, every physics step once the robot is past x = {RUTS_SETTLE_X_M:.0f} m)")
+        print("| seed | start offset, m | end | x reached, m | mean abs(e), m | sd, m | max abs(e), m |")
+        print("|---|---|---|---|---|---|---|")
+        for r in ruts_res:
+            print(f"| {r['seed']} | {r['start_e']:+.3f} | {r['end']} | {r['x_end']:.1f} | {r['mean_abs']:.3f} | {r['sd']:.3f} "
+                  f"| {r['max_abs']:.3f} |")
+        sys.stdout.flush()
+    if "hole_field" in parts:
+        holes_res = bench_hole_field()
+        print("\n## Holes in closed loop: hole_field.toml, goal seeking with and without GroundGuard (tilted laser)")
+        print("(clearance = nearest approach of the robot's disc to each hole's rim; negative = over the hole)")
+        print("| seed | without guard | with guard | time, s | path, m | clearance to holes 1 / 2 / 3, m | scans with a detection |")
+        print("|---|---|---|---|---|---|---|")
+        for r in holes_res:
+            cl = " / ".join(f"{c:.2f}" for c in r["clearance_m"])  # type: ignore[attr-defined]
+            print(f"| {r['seed']} | {r['plain_end']} at x = {r['plain_x']:.1f} m | {r['end']} | {r['t_s']:.1f} | {r['length_m']:.1f} "
+                  f"| {cl} | {r['detections']} |")
+        sys.stdout.flush()
+    if ns.plots and (ruts_res or holes_res):
+        for path in save_plots(ns.plots, ruts_res, holes_res):
+            print(f"\n(figure: {path})")
     if "latency" in parts:
         lat = bench_latency()
         print("\n## Latency: detection + control, one 811-beam TiM561 scan (median)")

@@ -13,14 +13,17 @@
 #include "drive.h"
 #include "encoder.h"
 #include "hal.h"
+#include "health.h"
 #include "link.h"
 #include "link_calib.h"
 #include "odometry.h"
 #include "params.h"
 #include "sched.h"
+#include "signing.h"
 #include "sonar_ring.h"
 
 #define WATCHDOG_TIMEOUT_MS 250u
+#define KEY_PROVISION_WINDOW_MS 10000u /* unsigned SETUP_SIGNING accepted this long after a power-on */
 #define SONAR_STALE_MS 500u /* no new ring for this long -> sonar fault */
 
 /* ---- parameters: module defaults are set in defaults(), stored ones loaded over them --- */
@@ -34,6 +37,7 @@ static uint16_t p_wheelbase_mm;
 static uint8_t p_sonar_count;   /* 0 none, 1 SRF05 front, 6 HC-SR04, 12 ring */
 static uint8_t p_mode_flags;    /* BHV_MODE_* enabled at boot */
 static behaviour_params_t p_bhv;
+static health_params_t p_health;
 
 /* Keys are append-only (STYLE: never reorder or reuse a row). Units are in the names. */
 static const PARAMS_ROM param_def_t PARAMS[] = {
@@ -73,6 +77,10 @@ static const PARAMS_ROM param_def_t PARAMS[] = {
     {"WALL_TIE_DIR", PARAM_I8, &p_bhv.wall_tie_dir, -1, 1},
     {"GOAL_MIN_MM_S", PARAM_I16, &p_bhv.goal_min_speed_mm_s, 0, 2000},
     {"GOAL_SLOW_MM", PARAM_U16, &p_bhv.goal_slow_mm, 0, 10000},
+    {"HLTH_ENC_MS", PARAM_U16, &p_health.enc_stuck_ms, 0, 10000},
+    {"HLTH_EDGE_MAX", PARAM_U16, &p_health.enc_edges_max, 0, 60000},
+    {"HLTH_SONAR_FR", PARAM_U8, &p_health.sonar_fault_frames, 0, 50},
+    {"HLTH_ZERO_FR", PARAM_U8, &p_health.sonar_zero_frames, 0, 100},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
@@ -105,6 +113,7 @@ static void defaults(void)
     p_sonar_count = 12u;
     p_mode_flags = AGNAV_DEFAULT_MODES;
     p_bhv = BEHAVIOUR_PARAMS_DEFAULT;
+    p_health = HEALTH_PARAMS_DEFAULT;
 }
 
 /* ---- state ---------------------------------------------------------------------------------- */
@@ -113,6 +122,7 @@ static behaviour_out_t s_out;
 static uint32_t s_out_ms; /* tick time of s_out */
 static uint32_t s_frame_ms;
 static bool s_watchdog_boot;
+static bool s_params_corrupt; /* stored parameters were corrupt: defaults in use (health flag) */
 static const sonar_ring_cfg_t *s_ring;
 
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
@@ -162,6 +172,7 @@ static void task_link(void)
     if (ls->arm_request) {
         ls->arm_request = false;
         behaviour_arm();
+        health_clear(); /* a sensor still faulty latches again (docs/safety.md) */
     }
 }
 
@@ -175,6 +186,7 @@ static void task_sonar(void)
      * task never sees a half-written frame. */
     if (sonar_ring_snapshot(&s_in.sonar)) {
         s_frame_ms = hal_time_ms();
+        health_sonar(&s_in.sonar);
     }
 }
 
@@ -218,11 +230,53 @@ static void update_odometry(void)
     }
 }
 
+/* Encoder health, before this tick's command: "driving" is what the outputs did since the
+ * last tick (not neutral: the calibration dead band already maps too-slow requests to neutral). */
+static void check_encoders(uint32_t now_ms)
+{
+    const drive_output_t *d = drive_output();
+    bool driving = s_out.speed_mm_s != 0 &&
+                   (p_drive_kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
+    uint16_t count[ENCODER_MAX], edges[ENCODER_MAX];
+    for (uint8_t i = 0; i < p_enc_count && i < ENCODER_MAX; i++) {
+        encoder_snapshot_t snap;
+        encoder_snapshot(i, &snap);
+        count[i] = (uint16_t)snap.count;
+        edges[i] = (uint16_t)snap.edges;
+    }
+    health_encoders(now_ms, driving, count, edges, encoder_faults());
+}
+
+/* One STATUSTEXT per newly latched health bit. */
+static void report_health(void)
+{
+    uint32_t fresh = health_take_new();
+    for (uint8_t b = 0; fresh != 0u && b < 32u; b++, fresh >>= 1) {
+        if ((fresh & 1u) == 0u) {
+            continue;
+        }
+        if (b < HEALTH_ENC_ERROR_SHIFT) {
+            link_send_statustext_n(MAV_SEVERITY_ERROR, LINK_TEXT("health: encoder # no counts while driving, stop"), b);
+        } else if (b < HEALTH_SONAR_TIMEOUT_SHIFT) {
+            link_send_statustext_n(MAV_SEVERITY_ERROR, LINK_TEXT("health: encoder # illegal edges/storm, stop"),
+                                   (uint8_t)(b - HEALTH_ENC_ERROR_SHIFT));
+        } else if (b < HEALTH_SONAR_ZERO_SHIFT) {
+            link_send_statustext_n(MAV_SEVERITY_ERROR, LINK_TEXT("health: sonar # never echoes, stop"),
+                                   (uint8_t)(b - HEALTH_SONAR_TIMEOUT_SHIFT));
+        } else {
+            link_send_statustext_n(MAV_SEVERITY_ERROR, LINK_TEXT("health: sonar # reads zero, stop"),
+                                   (uint8_t)(b - HEALTH_SONAR_ZERO_SHIFT));
+        }
+    }
+}
+
 static void task_control(void)
 {
     uint32_t now_ms = hal_time_ms();
     hal_watchdog_kick();
     update_odometry();
+    check_encoders(now_ms);
+    report_health();
     odom_pose_t pose;
     odom_get(&pose);
 
@@ -240,10 +294,12 @@ static void task_control(void)
     in->manual_rx_ms = ls->manual.rx_ms;
     in->manual_valid = ls->manual.valid;
     in->estop = ls->estop;
-    in->encoder_fault = encoder_faults() != 0u;
-    in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || sonar_any_fault(&in->sonar));
+    in->encoder_fault = encoder_faults() != 0u || health_encoder_fault();
+    in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || sonar_any_fault(&in->sonar) ||
+                                      health_sonar_fault());
     in->reset_was_watchdog = s_watchdog_boot;
-    in->calib_defaulted = (calib_health() & CALIB_DEFAULTED) != 0u;
+    /* "Stored configuration not in use": calibration defaulted, or a corrupt parameter record. */
+    in->calib_defaulted = (calib_health() & CALIB_DEFAULTED) != 0u || s_params_corrupt;
     in->x_mm = pose.x_mm;
     in->y_mm = pose.y_mm;
     in->heading_cdeg = (int16_t)pose.heading_cdeg;
@@ -366,8 +422,16 @@ static void task_telemetry_1hz(void)
         if ((s_out.failsafe_flags & BHV_FS_ENCODER_FAULT) != 0u) {
             healthy &= ~(uint32_t)MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS;
         }
+        /* errors_count1..4: link refusals, unsigned / wrongly signed / replayed frames dropped. */
+        const link_state_t *ls = link_state();
         mavlink_msg_sys_status_pack(link_sysid(), link_compid(), &msg, present, present, healthy, 0u, 0u, -1, -1, 0u,
-                                    link_state()->rx_errors, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
+                                    ls->rx_errors, ls->rx_refused, ls->rx_unsigned, ls->rx_bad_signature, ls->rx_replay,
+                                    0u, 0u, 0u);
+        send(&msg);
+        /* Which sensor failed how: health.h bit layout. */
+        static const char health_name[10] = "HEALTH"; /* the pack copies all 10 bytes of the field */
+        mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), health_name,
+                                         (int32_t)health_bits());
         send(&msg);
     }
     /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
@@ -413,13 +477,48 @@ static const sonar_ring_cfg_t *ring_for(uint8_t count)
     }
 }
 
+/* Boot report: once, as STATUSTEXT (docs/safety.md "Controller faults"). */
+static void report_boot(hal_reset_cause_t cause)
+{
+    switch (cause) {
+    case HAL_RESET_POWER_ON:
+        link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("boot: power-on reset"));
+        break;
+    case HAL_RESET_WATCHDOG:
+        link_send_statustext(MAV_SEVERITY_CRITICAL, LINK_TEXT("boot: WATCHDOG reset, stopped until armed"));
+        break;
+    case HAL_RESET_EXTERNAL:
+        link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("boot: external reset"));
+        break;
+    case HAL_RESET_BROWN_OUT:
+        link_send_statustext(MAV_SEVERITY_CRITICAL, LINK_TEXT("boot: BROWN-OUT reset, stopped until armed"));
+        break;
+    default:
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("boot: reset of unknown cause"));
+        break;
+    }
+}
+
 void agnav_setup(void)
 {
     hal_init();
-    s_watchdog_boot = hal_reset_cause() == HAL_RESET_WATCHDOG;
+    /* A reset the robot did not ask for (watchdog: a hung loop; brown-out: the supply sagged,
+     * e.g. motors stalling a weak battery) may have come in mid-motion: boot stopped, and stay
+     * stopped until the host arms again (behaviour's watchdog-boot latch). */
+    hal_reset_cause_t cause = hal_reset_cause();
+    s_watchdog_boot = cause == HAL_RESET_WATCHDOG || cause == HAL_RESET_BROWN_OUT;
+    /* A reset is a fresh start: clear what main keeps between ticks (on the board .bss is
+     * zeroed anyway; the native SIL re-enters agnav_setup() without reloading the program). */
+    memset(&s_in, 0, sizeof s_in);
+    memset(&s_out, 0, sizeof s_out);
+    memset(&s_sent, 0, sizeof s_sent);
+    s_out_ms = s_sent_ms = 0u;
+    s_stats_next = 0u;
+    s_frame_ms = hal_time_ms();
     defaults();
     params_init(PARAMS, (uint16_t)PARAM_COUNT);
-    bool params_ok = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK;
+    params_result_t params_rc = params_load(PARAMS_EEPROM_ADDR);
+    s_params_corrupt = params_rc == PARAMS_CORRUPT;
 
     calib_init();
     calib_load();
@@ -438,18 +537,29 @@ void agnav_setup(void)
         sonar_ring_init(s_ring);
     }
     behaviour_init(&p_bhv, s_ring);
+    health_init(&p_health, p_enc_count);
     drive_cfg_t dc = {p_drive_kind, p_track_mm, 0u, 0u};
     drive_init(&dc);
 
-    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib};
+    /* The signing key may be provisioned unsigned only right after a power-on or external
+     * reset: on the Mega, opening the USB serial port resets the board (DTR auto-reset), so
+     * this is "someone at the robot with a cable". Watchdog / brown-out boots: no window. */
+    uint16_t window_ms = (cause == HAL_RESET_POWER_ON || cause == HAL_RESET_EXTERNAL) ? KEY_PROVISION_WINDOW_MS : 0u;
+    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib, window_ms};
+    hal_uart_init(HAL_UART_LINK, 57600u);
     link_init(&lc);
     link_state()->behaviour_enable = p_mode_flags;
-    hal_uart_init(HAL_UART_LINK, 57600u);
-    if ((calib_health() & CALIB_DEFAULTED) != 0u) {
-        link_send_statustext(MAV_SEVERITY_WARNING, "calib: EEPROM tables missing or corrupt, defaults in use");
+    report_boot(cause);
+    if (signing_state() == SIGNING_KEY_CORRUPT) {
+        link_send_statustext(MAV_SEVERITY_CRITICAL, LINK_TEXT("signing: key record corrupt, all frames refused; re-provision"));
     }
-    if (!params_ok) {
-        link_send_statustext(MAV_SEVERITY_INFO, "params: no stored parameters, defaults in use");
+    if ((calib_health() & CALIB_DEFAULTED) != 0u) {
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("calib: EEPROM tables missing or corrupt, defaults in use"));
+    }
+    if (s_params_corrupt) {
+        link_send_statustext(MAV_SEVERITY_ERROR, LINK_TEXT("params: EEPROM record corrupt, defaults in use"));
+    } else if (params_rc != PARAMS_OK) {
+        link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("params: no stored parameters, defaults in use"));
     }
     sched_init(TASKS, (uint8_t)TASK_COUNT, s_stats);
     hal_watchdog_start(WATCHDOG_TIMEOUT_MS);

@@ -4,8 +4,10 @@
 
 #include <string.h>
 
+#include "calib.h"
 #include "hal.h"
 #include "params.h"
+#include "signing.h"
 #include "sim/hal_sim.h"
 
 /* The firmware's EEPROM map (params.h). */
@@ -16,7 +18,7 @@
 void agnav_setup(void);
 void agnav_loop_once(void);
 
-enum { EV_ENCODER = 0, EV_ECHO = 1 };
+enum { EV_ENCODER = 0, EV_ECHO = 1, EV_ECHO_FAULT = 2 /* an echo made by SIL_SONAR_ZERO */ };
 
 
 static struct {
@@ -31,6 +33,15 @@ static struct {
     uint8_t trig_idx[SIL_TRIGGER_MAX];
     uint64_t trig_t[SIL_TRIGGER_MAX];
     uint32_t trig_new; /* triggers since the current loop pass began */
+    /* fault injection (sil_api.h) */
+    uint8_t enc_fault[HAL_ENCODER_MAX];
+    uint8_t enc_ab[HAL_ENCODER_MAX]; /* line levels last delivered to the firmware */
+    uint8_t sonar_fault[HAL_SONAR_MAX];
+    uint32_t isr_cost_us;
+    uint32_t resets;
+    uint32_t wdt_kicks_seen;
+    uint64_t last_kick_us;
+    uint32_t kick_gap_max_us;
 } S;
 
 static sil_event_t s_heap[SIL_EVENT_MAX];
@@ -54,6 +65,48 @@ static void on_trigger(uint8_t idx, uint32_t t_us)
         S.trig_n++;
     }
     S.trig_new++;
+    if (idx < HAL_SONAR_MAX && S.sonar_fault[idx] == SIL_SONAR_ZERO) {
+        uint64_t rise = S.now_us + SIL_SONAR_ZERO_DELAY_US;
+        (void)ev_push(EV_ECHO_FAULT, idx, 1u, rise);
+        (void)ev_push(EV_ECHO_FAULT, idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
+    }
+}
+
+/* What the encoder lines do under an injected fault; the firmware's ISR hook sees the result. */
+static void encoder_deliver(uint8_t idx, uint8_t ab)
+{
+    if (idx >= HAL_ENCODER_MAX) {
+        return;
+    }
+    switch (S.enc_fault[idx]) {
+    case SIL_ENC_STUCK:
+    case SIL_ENC_DISCONNECTED:
+        return;
+    case SIL_ENC_NOISE:
+        ab = (uint8_t)(S.enc_ab[idx] ^ 3u); /* both lines at once: illegal */
+        break;
+    default:
+        break;
+    }
+    S.enc_ab[idx] = ab;
+    sim_encoder_edge(idx, ab);
+}
+
+static void echo_deliver(uint8_t idx, uint8_t level, int injected)
+{
+    if (idx < HAL_SONAR_MAX && S.sonar_fault[idx] != SIL_FAULT_NONE && !injected) {
+        return; /* the world's echo never reaches a faulty sensor's line */
+    }
+    sim_sonar_echo_edge(idx, level);
+}
+
+/* An interrupt takes CPU time: the loop cannot run meanwhile (sil_set_isr_cost_us). */
+static void isr_cost(void)
+{
+    if (S.isr_cost_us != 0u) {
+        S.now_us += S.isr_cost_us;
+        sim_time_set_us((uint32_t)S.now_us);
+    }
 }
 
 static void set_time(uint64_t t)
@@ -114,10 +167,30 @@ static void deliver_due(void)
             S.late++;
         }
         if (e.kind == EV_ENCODER) {
-            sim_encoder_edge(e.idx, e.val);
+            encoder_deliver(e.idx, e.val);
         } else {
-            sim_sonar_echo_edge(e.idx, e.val);
+            echo_deliver(e.idx, e.val, e.kind == EV_ECHO_FAULT);
         }
+        isr_cost();
+    }
+}
+
+/* The native watchdog model: a kick gap beyond the timeout resets the core (sil_api.h). */
+static void watch_kicks(void)
+{
+    uint32_t kicks = sim_watchdog_kicks();
+    if (kicks != S.wdt_kicks_seen) {
+        uint64_t gap = S.now_us - S.last_kick_us;
+        if (S.wdt_kicks_seen != 0u && gap > S.kick_gap_max_us) {
+            S.kick_gap_max_us = gap > 0xFFFFFFFFu ? 0xFFFFFFFFu : (uint32_t)gap;
+        }
+        S.wdt_kicks_seen = kicks;
+        S.last_kick_us = S.now_us;
+        return;
+    }
+    uint16_t timeout_ms = sim_watchdog_timeout_ms();
+    if (timeout_ms != 0u && kicks != 0u && S.now_us - S.last_kick_us > (uint64_t)timeout_ms * 1000u) {
+        sil_fault_reset(SIL_RESET_WATCHDOG);
     }
 }
 
@@ -135,8 +208,10 @@ uint64_t sil_step_to(uint64_t target)
         set_time(next);
         deliver_due();
         S.trig_new = 0u;
+        watch_kicks(); /* an ISR storm may have held the loop off past the timeout */
         agnav_loop_once();
         S.loop_passes++;
+        watch_kicks();
         if (S.stop_on_trigger && S.trig_new != 0u) {
             break;
         }
@@ -180,7 +255,7 @@ uint32_t sil_uart_read(uint8_t *buf, uint32_t max)
 }
 
 /* ---- encoders and sonar ------------------------------------------------------------------- */
-void sil_encoder_edge(uint8_t idx, uint8_t ab) { sim_encoder_edge(idx, ab); }
+void sil_encoder_edge(uint8_t idx, uint8_t ab) { encoder_deliver(idx, ab); }
 
 uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_t *ab, uint32_t n)
 {
@@ -212,7 +287,7 @@ uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
 }
 
 uint32_t sil_sonar_trigger_count(uint8_t idx) { return sim_sonar_trigger_count(idx); }
-void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { sim_sonar_echo_edge(idx, level); }
+void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_deliver(idx, level, 0); }
 uint32_t sil_pending_events(void) { return S.ev_n; }
 uint32_t sil_late_events(void) { return S.late; }
 
@@ -257,3 +332,103 @@ int sil_param_save(void) { return (int)params_save(SIL_EEPROM_PARAMS_ADDR); }
 uint32_t sil_eeprom_size(void) { return hal_eeprom_size(); }
 void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len) { hal_eeprom_read((uint16_t)addr, dst, (uint16_t)len); }
 void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len) { hal_eeprom_write((uint16_t)addr, src, (uint16_t)len); }
+
+/* ---- fault injection (sil_api.h) ------------------------------------------------------------- */
+int sil_fault_encoder(uint8_t idx, int mode)
+{
+    if (idx >= HAL_ENCODER_MAX || mode < SIL_FAULT_NONE || mode > SIL_ENC_NOISE) {
+        return -1;
+    }
+    S.enc_fault[idx] = (uint8_t)mode;
+    if (mode == SIL_ENC_DISCONNECTED && S.enc_ab[idx] != 3u) {
+        S.enc_ab[idx] = 3u; /* pull-ups take both lines high */
+        sim_encoder_edge(idx, 3u);
+    }
+    return 0;
+}
+
+int sil_fault_sonar(uint8_t idx, int mode)
+{
+    if (idx >= HAL_SONAR_MAX || mode < SIL_FAULT_NONE || mode > SIL_SONAR_ZERO) {
+        return -1;
+    }
+    S.sonar_fault[idx] = (uint8_t)mode;
+    return 0;
+}
+
+int sil_eeprom_record(int which, uint32_t *addr, uint32_t *len)
+{
+    switch (which) {
+    case SIL_REC_CALIB:
+        *addr = CALIB_EEPROM_ADDR;
+        *len = CALIB_RECORD_BYTES;
+        return 0;
+    case SIL_REC_PARAMS:
+        *addr = SIL_EEPROM_PARAMS_ADDR;
+        *len = 4u + 4u * params_count() + 2u;
+        return 0;
+    case SIL_REC_SIGNING:
+        *addr = SIGNING_KEY_ADDR;
+        *len = SIGNING_KEY_RECORD_BYTES;
+        return 0;
+    case SIL_REC_SIGNING_TS:
+        *addr = SIGNING_TS_ADDR;
+        *len = SIGNING_TS_SLOTS * SIGNING_TS_SLOT_BYTES;
+        return 0;
+    default:
+        return -1;
+    }
+}
+
+void sil_eeprom_corrupt(uint32_t addr, uint32_t len, uint8_t xor_mask)
+{
+    uint8_t *e = sim_eeprom_bytes();
+    for (uint32_t i = 0; i < len && addr + i < SIM_EEPROM_SIZE; i++) {
+        e[addr + i] ^= xor_mask;
+    }
+}
+
+void sil_fault_reset(int cause)
+{
+    static uint8_t keep[SIM_EEPROM_SIZE];
+    memcpy(keep, sim_eeprom_bytes(), SIM_EEPROM_SIZE);
+    sim_reset(); /* pins, UART buffers, timers: what a core reset clears */
+    memcpy(sim_eeprom_bytes(), keep, SIM_EEPROM_SIZE);
+    sim_sonar_on_trigger(on_trigger);
+    sim_set_reset_cause((hal_reset_cause_t)cause);
+    S.resets++;
+    S.wdt_kicks_seen = 0u;
+    memset(S.enc_ab, 0, sizeof S.enc_ab);
+    set_time(S.now_us);
+    agnav_setup();
+}
+
+uint32_t sil_resets(void) { return S.resets; }
+
+uint32_t sil_kick_gap_max_us(void)
+{
+    uint32_t g = S.kick_gap_max_us;
+    S.kick_gap_max_us = 0u;
+    return g;
+}
+
+uint32_t sil_isr_burst(uint8_t idx, uint32_t n, uint32_t period_us)
+{
+    static const uint8_t GRAY[4] = {0u, 2u, 3u, 1u}; /* A leads B: counts up */
+    uint8_t phase = 0u;
+    for (uint8_t k = 0; k < 4u; k++) {
+        if (GRAY[k] == S.enc_ab[idx < HAL_ENCODER_MAX ? idx : 0u]) {
+            phase = k;
+        }
+    }
+    uint32_t k = 0u;
+    for (; k < n; k++) {
+        phase = (uint8_t)((phase + 1u) & 3u);
+        if (!ev_push(EV_ENCODER, idx, GRAY[phase], S.now_us + (uint64_t)(k + 1u) * period_us)) {
+            break;
+        }
+    }
+    return k;
+}
+
+void sil_set_isr_cost_us(uint32_t us) { S.isr_cost_us = us; }

@@ -37,7 +37,7 @@
 extern "C" {
 #endif
 
-#define SIL_API_VERSION 1u
+#define SIL_API_VERSION 2u
 #define SIL_EVENT_MAX 65536u   /* queued encoder/echo edges */
 #define SIL_TRIGGER_MAX 256u   /* sonar triggers not yet taken */
 
@@ -110,6 +110,80 @@ int sil_param_save(void);
 uint32_t sil_eeprom_size(void);
 void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len);
 void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len);
+
+/* =====================================================================================
+ * FAULT INJECTION (SIL API version 2): hooks for the fault table (`make faults`).
+ * Every hook acts at once and stays until cleared (mode SIL_FAULT_NONE); none of them
+ * touches the firmware's code paths: they change what the "hardware" delivers.
+ * docs/safety.md lists the firmware's detection and reaction for each.
+ *
+ *   Encoders   sil_fault_encoder(idx, mode)
+ *     SIL_ENC_STUCK         edges of encoder idx are swallowed: the count freezes while
+ *                           the (simulated) wheel turns (broken magnet, slipping coupling).
+ *     SIL_ENC_DISCONNECTED  both lines float high (pull-ups): one jump to ab = 3 now,
+ *                           then no edges (unplugged connector).
+ *     SIL_ENC_NOISE         every edge arrives as an illegal jump (both lines at once):
+ *                           an illegal-transition storm (EMI, a broken wire touching).
+ *   Sonars     sil_fault_sonar(idx, mode)
+ *     SIL_SONAR_TIMEOUT     the echo line never rises after a trigger (dead or unplugged
+ *                           sensor): the world's echo edges for idx are swallowed.
+ *     SIL_SONAR_ZERO        an echo pulse of SIL_SONAR_ZERO_ECHO_US starts
+ *                           SIL_SONAR_ZERO_DELAY_US after every trigger (reads ~0 mm:
+ *                           a shorted transducer / ringing); world edges swallowed.
+ *   EEPROM     sil_eeprom_record(which, &addr, &len) locates a record (SIL_REC_*);
+ *              sil_eeprom_corrupt(addr, len, xor_mask) flips bits there; the firmware
+ *              sees it at its next boot (sil_reboot() or sil_fault_reset()).
+ *   Resets     sil_fault_reset(cause): a core reset NOW with reset cause `cause`
+ *              (SIL_RESET_*: the values of hal_reset_cause_t). The world goes on: the SIL
+ *              clock, queued events and the EEPROM are kept; the firmware's RAM state
+ *              and outputs start afresh (outputs neutral) and agnav_setup() runs.
+ *              Native: the firmware's clock continues (it only uses differences);
+ *              simavr: a real core reset with MCUSR set to WDRF / BORF / EXTRF / PORF.
+ *   Watchdog   native: modelled. After hal_watchdog_start(), a gap between two
+ *              hal_watchdog_kick() calls longer than the timeout is a watchdog reset
+ *              (as sil_fault_reset(SIL_RESET_WATCHDOG)); simavr: the real watchdog.
+ *              sil_resets() counts resets of either kind since power-on;
+ *              sil_kick_gap_max_us() is the longest gap between two kicks (the control
+ *              task kicks every tick, so this is its worst period) since the last call.
+ *   ISR bursts sil_isr_burst(idx, n, period_us) queues n legal quadrature edges of
+ *              encoder idx, the first period_us from now (at period_us intervals).
+ *              sil_set_isr_cost_us(us) (native only; simavr runs the real ISR cycles)
+ *              makes every delivered edge (encoder or echo) take us of CPU time, during
+ *              which the main loop cannot run, as an interrupt would.
+ *
+ * The simavr backend (hil/simavr/avr_sil.c) implements all of these with the same
+ * semantics except sil_set_isr_cost_us (ignored: the real ISR costs real cycles).
+ * ===================================================================================== */
+#define SIL_FAULT_NONE 0
+#define SIL_ENC_STUCK 1
+#define SIL_ENC_DISCONNECTED 2
+#define SIL_ENC_NOISE 3
+#define SIL_SONAR_TIMEOUT 1
+#define SIL_SONAR_ZERO 2
+#define SIL_SONAR_ZERO_DELAY_US 300u
+#define SIL_SONAR_ZERO_ECHO_US 60u /* ~10 mm */
+
+#define SIL_REC_CALIB 0   /* calibration tables (calib.h) */
+#define SIL_REC_PARAMS 1  /* parameter record (params.h) */
+#define SIL_REC_SIGNING 2 /* MAVLink signing key record (signing.h) */
+#define SIL_REC_SIGNING_TS 3 /* signing timestamp ring (signing.h) */
+
+#define SIL_RESET_POWER_ON 0
+#define SIL_RESET_WATCHDOG 1
+#define SIL_RESET_EXTERNAL 2
+#define SIL_RESET_BROWN_OUT 3
+
+/* 0 ok, -1 bad index or mode. */
+int sil_fault_encoder(uint8_t idx, int mode);
+int sil_fault_sonar(uint8_t idx, int mode);
+/* 0 ok (addr, len filled), -1 unknown record. */
+int sil_eeprom_record(int which, uint32_t *addr, uint32_t *len);
+void sil_eeprom_corrupt(uint32_t addr, uint32_t len, uint8_t xor_mask);
+void sil_fault_reset(int cause);
+uint32_t sil_resets(void);
+uint32_t sil_kick_gap_max_us(void);
+uint32_t sil_isr_burst(uint8_t idx, uint32_t n, uint32_t period_us);
+void sil_set_isr_cost_us(uint32_t us);
 
 #ifdef __cplusplus
 }

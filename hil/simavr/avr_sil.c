@@ -101,7 +101,8 @@
 #define RXEN0_BIT 4u
 #define OPCODE_WDR 0x95A8u
 
-enum { EV_ENCODER = 0, EV_ECHO = 1 };
+enum { EV_ENCODER = 0, EV_ECHO = 1, EV_ECHO_FAULT = 2 /* made by SIL_SONAR_ZERO */ };
+#define REG_MCUSR 0x54u /* WDRF bit 3, BORF 2, EXTRF 1, PORF 0 */
 
 typedef sil_event_t ev_t;
 
@@ -136,6 +137,10 @@ static struct {
     uint32_t tx_lost;
     uint32_t log_errors;
     uint32_t resets;         /* core resets after power-on (watchdog, ...) */
+    /* fault injection (sil_api.h) */
+    uint8_t enc_fault[4], enc_ab[4], sonar_fault[12];
+    uint64_t last_kick_cycle;
+    uint32_t kick_gap_max_us;
 } S;
 
 static ev_t s_heap[SIL_EVENT_MAX];
@@ -378,6 +383,11 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
     }
     S.trig_count[idx]++;
     S.trig_new++;
+    if (S.sonar_fault[idx] == SIL_SONAR_ZERO) {
+        uint64_t rise = now_cycle() / CYC_PER_US + SIL_SONAR_ZERO_DELAY_US;
+        (void)ev_push(EV_ECHO_FAULT, (uint8_t)idx, 1u, rise);
+        (void)ev_push(EV_ECHO_FAULT, (uint8_t)idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
+    }
     if (S.stop_on_trigger) {
         uint64_t dl = now_cycle() + SIL_AVR_TRIGGER_SETTLE_US * CYC_PER_US;
         S.trig_deadline = dl;
@@ -407,6 +417,27 @@ static void echo_set(uint8_t i, uint8_t level)
     if (g_avr != NULL && i < 12u) {
         avr_raise_irq(g_echo[i], level ? 1u : 0u);
     }
+}
+
+/* Fault filters in front of the pins (same semantics as the native SIL). */
+static void enc_deliver(uint8_t i, uint8_t ab)
+{
+    if (i >= 4u || S.enc_fault[i] == SIL_ENC_STUCK || S.enc_fault[i] == SIL_ENC_DISCONNECTED) {
+        return;
+    }
+    if (S.enc_fault[i] == SIL_ENC_NOISE) {
+        ab = (uint8_t)(S.enc_ab[i] ^ 3u);
+    }
+    S.enc_ab[i] = ab;
+    enc_set(i, ab);
+}
+
+static void echo_deliver(uint8_t i, uint8_t level, int injected)
+{
+    if (i < 12u && S.sonar_fault[i] != SIL_FAULT_NONE && !injected) {
+        return;
+    }
+    echo_set(i, level);
 }
 
 static void ee_get(uint32_t addr, uint8_t *dst, uint32_t len)
@@ -499,6 +530,7 @@ void sil_init(void)
     avr_model_hook_tifr(g_avr);
     g_mcu_reset = g_avr->reset;
     g_avr->reset = on_core_reset;
+    g_avr->data[REG_MCUSR] = 0x01u; /* PORF, as the chip after a power-on (simavr leaves 0) */
 }
 
 /* Run the core until run_until (an instruction boundary at or after it). */
@@ -520,6 +552,13 @@ static void run_core(void)
     while (avr->cycle < S.run_until) {
         uint32_t pc = avr->pc;
         if ((uint16_t)(avr->flash[pc] | (avr->flash[pc + 1u] << 8)) == OPCODE_WDR) {
+            if (S.wdt_kicks != 0u) {
+                uint64_t gap_us = (avr->cycle - S.last_kick_cycle) / CYC_PER_US;
+                if (gap_us > S.kick_gap_max_us) {
+                    S.kick_gap_max_us = (uint32_t)gap_us;
+                }
+            }
+            S.last_kick_cycle = avr->cycle;
             S.wdt_kicks++;
         }
         avr->run(avr);
@@ -580,9 +619,9 @@ static void deliver_due(void)
             S.late++;
         }
         if (e.kind == EV_ENCODER) {
-            enc_set(e.idx, e.val);
+            enc_deliver(e.idx, e.val);
         } else {
-            echo_set(e.idx, e.val);
+            echo_deliver(e.idx, e.val, e.kind == EV_ECHO_FAULT);
         }
     }
 }
@@ -645,7 +684,7 @@ uint32_t sil_uart_read(uint8_t *buf, uint32_t max)
 }
 
 /* ---- encoders and sonar ------------------------------------------------------------------------------ */
-void sil_encoder_edge(uint8_t idx, uint8_t ab) { enc_set(idx, ab); }
+void sil_encoder_edge(uint8_t idx, uint8_t ab) { enc_deliver(idx, ab); }
 
 uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_t *ab, uint32_t n)
 {
@@ -674,7 +713,7 @@ uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
 }
 
 uint32_t sil_sonar_trigger_count(uint8_t idx) { return idx < 12u ? S.trig_count[idx] : 0u; }
-void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_set(idx, level); }
+void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_deliver(idx, level, 0); }
 uint32_t sil_pending_events(void) { return S.ev_n; }
 uint32_t sil_late_events(void) { return S.late; }
 
@@ -845,3 +884,109 @@ uint32_t sil_avr_resets(void) { return S.resets; }
 uint32_t sil_avr_uart_rx_pending(void) { return S.rx_head - S.rx_tail; }
 uint32_t sil_avr_uart_tx_lost(void) { return S.tx_lost; }
 const char *sil_avr_elf(void) { return elf_path(); }
+
+/* ---- fault injection (sil_api.h; same semantics as the native SIL) ------------------------------- */
+int sil_fault_encoder(uint8_t idx, int mode)
+{
+    if (idx >= 4u || mode < SIL_FAULT_NONE || mode > SIL_ENC_NOISE) {
+        return -1;
+    }
+    S.enc_fault[idx] = (uint8_t)mode;
+    if (mode == SIL_ENC_DISCONNECTED && S.enc_ab[idx] != 3u) {
+        S.enc_ab[idx] = 3u;
+        enc_set(idx, 3u);
+    }
+    return 0;
+}
+
+int sil_fault_sonar(uint8_t idx, int mode)
+{
+    if (idx >= 12u || mode < SIL_FAULT_NONE || mode > SIL_SONAR_ZERO) {
+        return -1;
+    }
+    S.sonar_fault[idx] = (uint8_t)mode;
+    return 0;
+}
+
+/* The firmware's EEPROM map (calib.h, params.h, signing.h; tests compare with the native SIL). */
+int sil_eeprom_record(int which, uint32_t *addr, uint32_t *len)
+{
+    switch (which) {
+    case SIL_REC_CALIB:
+        *addr = 0x0100u;
+        *len = 212u;
+        return 0;
+    case SIL_REC_PARAMS:
+        *addr = SIL_EEPROM_PARAMS_ADDR;
+        *len = 4u + 4u * (uint32_t)(g_param_n > 0 ? g_param_n : 0) + 2u;
+        return 0;
+    case SIL_REC_SIGNING:
+        *addr = 0x0040u;
+        *len = 36u;
+        return 0;
+    case SIL_REC_SIGNING_TS:
+        *addr = 0x0070u;
+        *len = 64u;
+        return 0;
+    default:
+        return -1;
+    }
+}
+
+void sil_eeprom_corrupt(uint32_t addr, uint32_t len, uint8_t xor_mask)
+{
+    for (uint32_t i = 0; i < len && addr + i < EE_SIZE; i++) {
+        uint8_t b;
+        ee_get(addr + i, &b, 1u);
+        b ^= xor_mask;
+        ee_set(addr + i, &b, 1u);
+    }
+}
+
+/* A real core reset (simavr's avr_reset: registers and RAM state, EEPROM kept), then the reset
+ * flags the hardware would leave in MCUSR; the firmware's .init3 reads them. */
+void sil_fault_reset(int cause)
+{
+    static const uint8_t FLAG[4] = {0x01u /* PORF */, 0x08u /* WDRF */, 0x02u /* EXTRF */, 0x04u /* BORF */};
+    if (g_avr == NULL) {
+        return;
+    }
+    avr_reset(g_avr); /* on_core_reset counts it */
+    g_avr->data[REG_MCUSR] = cause >= 0 && cause < 4 ? FLAG[cause] : 0u;
+    for (unsigned i = 0; i < 4u; i++) {
+        S.enc_ab[i] = 0u;
+        enc_set((uint8_t)i, 0u);
+    }
+    S.wdt_kicks = 0u;
+}
+
+uint32_t sil_resets(void) { return S.resets; }
+
+uint32_t sil_kick_gap_max_us(void)
+{
+    uint32_t g = S.kick_gap_max_us;
+    S.kick_gap_max_us = 0u;
+    return g;
+}
+
+uint32_t sil_isr_burst(uint8_t idx, uint32_t n, uint32_t period_us)
+{
+    static const uint8_t GRAY[4] = {0u, 2u, 3u, 1u};
+    uint8_t phase = 0u;
+    for (uint8_t k = 0; k < 4u; k++) {
+        if (GRAY[k] == S.enc_ab[idx < 4u ? idx : 0u]) {
+            phase = k;
+        }
+    }
+    uint64_t now = sil_time_us();
+    uint32_t k = 0u;
+    for (; k < n; k++) {
+        phase = (uint8_t)((phase + 1u) & 3u);
+        if (!ev_push(EV_ENCODER, idx, GRAY[phase], now + (uint64_t)(k + 1u) * period_us)) {
+            break;
+        }
+    }
+    return k;
+}
+
+void sil_set_isr_cost_us(uint32_t us) { (void)us; /* the real ISR costs real cycles */ }

@@ -66,6 +66,8 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     meta: dict[str, float] = {}
     angles: list[float] = []
     ranges: list[float] = []
+    line_of: list[int] = []  # file line of each beam, for the messages below
+    meta_line: dict[str, int] = {}
     header_seen = False
     for n, raw in enumerate(text.splitlines(), 1):
         line = raw.strip()
@@ -80,6 +82,7 @@ def load_scan_csv(path: str | Path) -> LaserScan:
                     k, v = (s.strip() for s in item.split("=", 1))
                     try:
                         meta[k] = float(v)
+                        meta_line[k] = n
                     except ValueError:
                         raise ScanFileError(f"{p}:{n}: metadata {k} is not a number: {v!r}") from None
             continue
@@ -101,6 +104,7 @@ def load_scan_csv(path: str | Path) -> LaserScan:
             raise ScanFileError(f"{p}:{n}: negative range {r}")
         angles.append(a)
         ranges.append(r)
+        line_of.append(n)
     if not header_seen:
         raise ScanFileError(f"{p}: no {HEADER!r} header line")
     if len(angles) < 2:
@@ -109,13 +113,17 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     d = np.diff(ang)
     inc = float((ang[-1] - ang[0]) / (len(ang) - 1))
     if inc <= 0 or np.any(d <= 0):
-        raise ScanFileError(f"{p}: angles must be strictly ascending")
+        bad = int(np.argmax(d <= 0)) if np.any(d <= 0) else len(d) - 1
+        raise ScanFileError(f"{p}:{line_of[bad + 1]}: angles must be strictly ascending "
+                            f"(angle {ang[bad + 1]!r} after {ang[bad]!r} on line {line_of[bad]})")
     if np.max(np.abs(d - inc)) > 1e-6 + 1e-3 * inc:
         bad = int(np.argmax(np.abs(d - inc)))
-        raise ScanFileError(f"{p}: angles are not evenly spaced (step {d[bad]:.6g} rad before beam {bad + 1}, mean {inc:.6g})")
+        raise ScanFileError(f"{p}:{line_of[bad + 1]}: angles are not evenly spaced (step {d[bad]:.6g} rad before "
+                            f"beam {bad + 1}, mean {inc:.6g})")
     present = [k for k in ("pose_x_m", "pose_y_m", "pose_yaw_rad") if k in meta]
     if present and len(present) != 3:
-        raise ScanFileError(f"{p}: pose metadata incomplete, have {present}, need pose_x_m, pose_y_m, pose_yaw_rad")
+        raise ScanFileError(f"{p}:{meta_line[present[0]]}: pose metadata incomplete, have {present}, "
+                            "need pose_x_m, pose_y_m, pose_yaw_rad")
     pose = Pose2D(meta["pose_x_m"], meta["pose_y_m"], meta["pose_yaw_rad"]) if present else None
     return LaserScan(float(ang[0]), inc, np.asarray(ranges, dtype=float), meta.get("range_max_m", math.inf),
                      meta.get("stamp_s", 0.0), pose)

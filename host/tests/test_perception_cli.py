@@ -77,3 +77,36 @@ def test_rows_missing_file_and_unknown_method(tmp_path, scan_file, capsys):
 def test_rows_human_readable_output(scan_file, capsys):
     assert main(["rows", "--scan", str(scan_file)]) == 0
     assert "robot left of centre" in capsys.readouterr().out
+
+
+def test_rows_signs_follow_rep103_both_ways(tmp_path, capsys):
+    """Robot right of the centre line and turned CCW: negative offset, positive heading (the fixture has the
+    opposite case)."""
+    rng = np.random.default_rng(2)
+    w = World()
+    for y in (-1.125, -0.375, 0.375, 1.125):
+        w.add_circles(plants_along(np.array([[-3.0, y], [8.0, y]]), 0.15, 0.05, rng, 3, 0.015))
+    scan = Laser2D(laser_preset("tim310")).scan(w, Pose2D(0.0, -0.06, 0.08), 0.0, np.random.default_rng(1))
+    path = save_scan_csv(scan, tmp_path / "right_ccw.csv")
+    assert main(["rows", "--scan", str(path), "--method", "ransac", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["lateral_offset_m"] == pytest.approx(-0.06, abs=0.03)
+    assert out["heading_rad"] == pytest.approx(0.08, abs=0.03)
+
+
+@pytest.mark.parametrize("body, line, words", [
+    ("# agnav-scan v1\nangle_rad,range_m\n0.0,1.0\n0.1,1.0\n0.05,1.0\n", 5, "strictly ascending"),
+    ("# agnav-scan v1\nangle_rad,range_m\n0.0,1.0\n0.1,1.0\n0.2,1.0\n0.5,1.0\n", 6, "not evenly spaced"),
+    ("# agnav-scan v1\n# pose_x_m=1.0,pose_y_m=2.0\nangle_rad,range_m\n0.0,1.0\n0.1,1.0\n", 2, "pose metadata incomplete"),
+    ("# agnav-scan v1\nangle,range\n0.0,1.0\n", 2, "expected header"),
+    ("# agnav-scan v1\nangle_rad,range_m\n0.0,1.0\n0.1,1.0,7\n", 4, "expected 2 columns"),
+    ("# agnav-scan v1\nangle_rad,range_m\n0.0,1.0\n0.1,-2\n", 4, "negative range"),
+    ("# agnav-scan v1\n# stamp_s=soon\nangle_rad,range_m\n0.0,1.0\n0.1,1.0\n", 2, "not a number"),
+])
+def test_rows_bad_files_name_the_line(tmp_path, capsys, body, line, words):
+    bad = tmp_path / "bad.csv"
+    bad.write_text(body, encoding="utf-8")
+    assert main(["rows", "--scan", str(bad), "--json"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # nothing on stdout for a script reading the JSON
+    assert f"{bad}:{line}:" in captured.err and words in captured.err

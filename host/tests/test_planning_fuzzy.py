@@ -94,3 +94,19 @@ def test_infer_left_close_turns_right_and_stops():
     inf = infer(0.1, 10.0, 10.0, 0.0, 0.6)
     assert inf.speed_fraction == 0.0
     assert inf.turn_rad < 0.0
+
+
+def test_cla_hysteresis_holds_the_previous_area_until_another_is_clearly_larger():
+    ts = TurnSets()
+    x = ts.universe
+    left_bigger = np.maximum(np.minimum(ts.triangle(math.radians(-60)), 0.50), np.minimum(ts.triangle(math.radians(60)), 0.56))
+    assert cla_defuzzify(x, left_bigger, 0.3) > 0  # no memory: the larger (left) area
+    assert cla_defuzzify(x, left_bigger, 0.3, keep_rad=math.radians(-55), keep_bonus=0.25) < 0  # held right
+    much_bigger = np.maximum(np.minimum(ts.triangle(math.radians(-60)), 0.4), ts.triangle(math.radians(60)))
+    assert cla_defuzzify(x, much_bigger, 0.3, keep_rad=math.radians(-55), keep_bonus=0.25) > 0  # switches
+
+
+def test_infer_goal_side_overrides_the_sign_of_a_nearly_straight_bearing():
+    # front close, sides far, goal 3 deg to the right: the caller holds a left detour
+    assert infer(10.0, 0.2, 10.0, math.radians(-3), 0.6).turn_rad < 0
+    assert infer(10.0, 0.2, 10.0, math.radians(-3), 0.6, goal_side=1.0).turn_rad > math.radians(20)

@@ -88,3 +88,31 @@ def test_vfh_histogram_sees_a_wall_ahead_only():
     centres = -math.pi + (2 * math.pi / 72) * (np.arange(72) + 0.5)
     assert h[np.abs(centres) < math.radians(20)].min() > 0.5
     assert h[np.abs(centres) > math.radians(90)].max() == 0.0
+
+
+def test_him_departing_free_lets_the_body_move_off_a_wall_it_touches():
+    from agnav_host.planning.base import free_distances_m
+    from agnav_host.planning.him import departing_free_m
+
+    wall = np.array([[x, -0.24] for x in np.linspace(-1.0, 1.0, 41)])  # 0.24 m to the right, robot r 0.225 + margin
+    dirs = np.array([math.pi / 2, -math.pi / 2, 0.0])
+    plain = free_distances_m(wall, dirs, 0.26, 1.0)
+    off = departing_free_m(wall, dirs, 0.26, 1.0)
+    assert plain[0] == 0.0  # the margin test blocks even moving away from the wall
+    assert off[0] == pytest.approx(1.0)  # moving away (left) is free
+    assert off[1] == 0.0 and off[2] == 0.0  # into it, or along it while overlapping, is not
+
+
+def test_him_visited_cells_make_a_tried_escape_point_dearer():
+    p = HimPlanner(SPEC)
+    scan = scan_from_segments([(2.0, -1.0, 2.0, 2.5)])
+    obs = obs_with(scan, (4.0, 0.0))
+    pts = np.array([[1.8, -1.5], [1.8, 3.0]])
+    assert np.all(p._visit_cost(obs, pts) == 0.0)
+    for _ in range(60):  # four seconds at 15 Hz spent in the cell of the first point
+        p._visited[p._cell(1.8, -1.5)] = p._visited.get(p._cell(1.8, -1.5), 0.0) + SPEC.control_dt_s
+    cost = p._visit_cost(obs, pts)
+    assert cost[0] == pytest.approx(min(p.params.visit_gain_m_s * 60 * SPEC.control_dt_s, p.params.visit_cap_m))
+    assert cost[1] == 0.0
+    p.reset()
+    assert np.all(p._visit_cost(obs, pts) == 0.0)

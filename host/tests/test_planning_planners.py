@@ -137,3 +137,22 @@ def test_subsumption_blocked_turn_prefers_the_goal_side_and_agreement_ends_a_hel
     assert cmd.yaw_rate_rad_s > 0.0  # goal side wins, left timer started
     cmd = p.step(obs_with(None, (1.0, -3.0), sonar_frame(left_near), t=0.5))  # goal now right: both say right
     assert cmd.yaw_rate_rad_s < 0.0 and p.reason.name != "CANYON_TIMER"
+
+
+def test_subsumption_wall_alongside_does_not_hold_the_wall_layer_when_the_goal_is_ahead():
+    """Host extension (wall_goal_exit): a wall 1 m to the right, seen by the -30 and -60 deg sonars at
+    1.2-1.4 m (inside the 1.5 m engage horizon), front open, goal dead ahead. The firmware's exit
+    test keeps the follow-wall layer, which steers away from the wall; with the extension the robot
+    seeks the goal. A wall within half the horizon keeps the layer either way."""
+    far_wall = np.full(12, np.nan)
+    far_wall[[10, 11]] = [1.2, 1.4]  # -60, -30 deg
+    firmware = make_planner("subsumption", SPEC, {"wall_goal_exit": False})
+    firmware.step(obs_with(None, (5.0, 0.0), sonar_frame(far_wall)))
+    assert firmware.layer.name == "FOLLOW_WALL"
+    host = make_planner("subsumption", SPEC)
+    cmd = host.step(obs_with(None, (5.0, 0.0), sonar_frame(far_wall)))
+    assert host.layer.name == "MOVE_TO_GOAL" and abs(cmd.yaw_rate_rad_s) < 1e-9
+    near_wall = far_wall.copy()
+    near_wall[11] = 0.6
+    host.step(obs_with(None, (5.0, 0.0), sonar_frame(near_wall)))
+    assert host.layer.name == "FOLLOW_WALL"

@@ -1,6 +1,6 @@
 /*
  * Wheel encoder front end. See encoder.h for the contract and the speed
- * estimator crossover.
+ * estimator crossover, encoder_isr.h for the interrupt record.
  */
 #include "encoder.h"
 
@@ -9,81 +9,210 @@
 #include "encoder_isr.h"
 #include "hal.h"
 
-/* ---- quadrature decode --------------------------------------------------
- * Index (old << 2) | new with ab = (A << 1) | B. Forward (A leads B) walks
- * the Gray ring 0 -> 2 -> 3 -> 1 -> 0; backward walks it the other way.
- * Same state: 0 (repeated interrupt, no motion). Both lines changed: error.
- * The inverted table is the same with the signs swapped, so the ISR never
- * multiplies. Kept in RAM (32 bytes) because the ISR reads it. */
-#define QERR ENCODER_QERR
+_Static_assert(sizeof(encoder_isr_t) == ENCODER_ISR_SIZE, "AVR vector layout");
+_Static_assert(offsetof(encoder_isr_t, back) == ENCODER_ISR_OFS_BACK, "AVR vector layout");
+_Static_assert(offsetof(encoder_isr_t, errors) == ENCODER_ISR_OFS_ERRORS, "AVR vector layout");
+_Static_assert(offsetof(encoder_isr_t, fwd_stamp) == ENCODER_ISR_OFS_FWD_STAMP, "AVR vector layout");
+_Static_assert(offsetof(encoder_isr_t, back_stamp) == ENCODER_ISR_OFS_BACK_STAMP, "AVR vector layout");
 
-static const int8_t QUAD_FWD[16] = {
-    /* old 0 (00) -> new 0..3 */ 0, -1, +1, QERR,
-    /* old 1 (01) */ +1, 0, QERR, -1,
-    /* old 2 (10) */ -1, QERR, 0, +1,
-    /* old 3 (11) */ QERR, +1, -1, 0,
-};
+#define W_CONFIGURED 0x01u
+#define W_INVERT 0x02u
+#define W_HALL 0x04u
+#define RUN_NO_REF 0xFFFFu /* run_n: no stamped step of the current run yet */
 
-static const int8_t QUAD_INV[16] = {
-    0, +1, -1, QERR,
-    -1, 0, QERR, +1,
-    +1, QERR, 0, -1,
-    QERR, -1, +1, 0,
-};
-
-/* Loop-side state and derived constants. */
+/* Loop-side state, per wheel. What fold() touches on every call comes first: the
+ * AVR reaches struct fields through a pointer with a 0..63 byte displacement only. */
 typedef struct {
-    uint32_t nm_per_count;     /* travel per count, nm; also (mm/s)*us for the period method */
-    uint32_t um_q8_per_count;  /* travel per count, 1/256 um */
-    int32_t max_fast_counts;   /* |counts| below which count * um_q8 fits int32 */
-    uint32_t stop_timeout_us;
+    /* what was folded from the interrupt record */
+    uint16_t seen_fwd, seen_back, seen_errors;
+    uint8_t bits;                  /* W_* */
+    int8_t hall_sign;              /* Hall: sign of a pulse in robot terms (hint, inverted) */
+    int8_t dir;                    /* robot-terms sign of the last counted step, 0 = none yet */
+    int8_t run_dir;                /* raw direction (+1 fwd, -1 back) of the current run, 0 = none */
+    uint16_t run_n;                /* steps after ref_us (RUN_NO_REF: no reference yet) */
+    uint16_t span_n;               /* period (M/T method): span_us over span_n steps, 0 = unknown */
+    uint32_t span_us;
+    uint32_t ref_us;               /* time of the last stamped step of the run */
+    uint32_t last_edge_us;         /* time of the last stamped step */
+    uint32_t count, edges, errors; /* 32-bit totals (count: two's complement view) */
+    /* since the last encoder_update() */
+    int32_t pend_count;
+    uint16_t pend_edges, pend_errors;
+    /* encoder_update() */
+    uint16_t win_edges, win_errors;
+    int32_t delta_um;
+    int32_t speed_mm_s;
+    uint8_t method;
+    uint8_t flags;
+    uint8_t resid_q8;              /* carried sub-micrometre travel, 1/256 um */
     uint8_t crossover_counts;
-    uint8_t configured;
-    uint8_t invert;
-    uint8_t resid_q8;          /* carried sub-micrometre travel, 1/256 um, 0..255 */
-    int32_t prev_count;
-    uint32_t prev_edges;
-    uint32_t prev_errors;
-    /* 32-bit extension of the ISR's 16-bit counters (folded by fold()). */
-    uint32_t ext_count, ext_edges, ext_errors;
-    uint16_t seen_count, seen_edges, seen_errors;
-    uint16_t win_edges;
-    uint16_t win_errors;
-    encoder_motion_t out;
+    /* configuration */
+    uint16_t stop_timeout_ms;
+    uint32_t nm_per_count;         /* travel per count, nm; also (mm/s)*us for the period method */
+    uint32_t um_q8_per_count;      /* travel per count, 1/256 um */
 } enc_loop_t;
 
-/* Not volatile: the ISR is the only writer while interrupts are enabled, and
- * every other access sits between hal_irq_save()/hal_irq_restore(), which
- * are compiler barriers (external calls / asm with a memory clobber). This
- * lets the ISR keep values in registers instead of re-reading memory. */
+/* Not volatile: the interrupt is the only writer while interrupts are enabled,
+ * and the loop copies it between hal_irq_save()/hal_irq_restore(), which are
+ * compiler barriers (external calls / asm with a memory clobber). */
 encoder_isr_t encoder_isr_state[ENCODER_MAX];
 #define s_isr encoder_isr_state
 static enc_loop_t s_loop[ENCODER_MAX];
 static uint32_t s_prev_update_us;
+/* Generic hook only: last levels per encoder (the AVR vector keeps PINK in GPIOR1). */
+static uint8_t s_levels[ENCODER_MAX];
 
 /* ---- ISR side --------------------------------------------------------- */
 
-/* The generic hook (sim HAL, STM32): the same inline step the AVR ISR uses. */
 void encoder_isr_edge(uint8_t idx, uint8_t ab, uint32_t t_us)
 {
     if (idx >= ENCODER_MAX) {
         return;
     }
-    encoder_isr_step(&s_isr[idx], (uint8_t)(ab & 3u), t_us);
+    ab &= 3u;
+    uint8_t old = s_levels[idx];
+    uint8_t changed = (uint8_t)(old ^ ab);
+    s_levels[idx] = ab;
+    if (changed == 0u) {
+        return;
+    }
+    encoder_isr_t *e = &s_isr[idx];
+    if (changed == 3u) {
+        e->errors++;
+        return;
+    }
+    uint16_t stamp = (uint16_t)(t_us >> ENCODER_STAMP_SHIFT);
+    if (((ab >> 1) ^ old) & 1u) { /* A_new != B_old */
+        if ((uint8_t)++e->fwd != 0u) {
+            e->fwd_stamp = stamp;
+        }
+    } else {
+        if ((uint8_t)++e->back != 0u) {
+            e->back_stamp = stamp;
+        }
+    }
 }
 
-/* Take the ISR's 16-bit counters into the 32-bit loop-side totals. Called with
- * interrupts masked. */
-static void fold(uint8_t idx)
+/* ---- folding the record into the loop-side totals --------------------- */
+
+/* Microseconds of a stamp, given the time now (both in the same 2^18 us window);
+ * 4 us resolution (the low bits of now are dropped). */
+static uint32_t stamp_us(uint16_t stamp, uint32_t now_us)
 {
-    enc_loop_t *w = &s_loop[idx];
-    const encoder_isr_t *e = &s_isr[idx];
-    w->ext_count += (uint32_t)(int32_t)(int16_t)(uint16_t)(e->count - w->seen_count);
-    w->ext_edges += (uint16_t)(e->edges - w->seen_edges);
-    w->ext_errors += (uint16_t)(e->errors - w->seen_errors);
-    w->seen_count = e->count;
-    w->seen_edges = e->edges;
-    w->seen_errors = e->errors;
+    uint16_t age = (uint16_t)((uint16_t)(now_us >> ENCODER_STAMP_SHIFT) - stamp);
+    return (now_us & ~(uint32_t)((1u << ENCODER_STAMP_SHIFT) - 1u)) - (uint32_t)age * (1u << ENCODER_STAMP_SHIFT);
+}
+
+static uint16_t sat_add16(uint16_t a, uint16_t b)
+{
+    uint16_t s = (uint16_t)(a + b);
+    return s < a ? 0xFFFFu : s;
+}
+
+/* n steps of raw direction d, the last stamped one (stamped of the n) at t (if stamped > 0). */
+static void run_steps(enc_loop_t *w, int8_t d, uint16_t n, uint16_t stamped, uint32_t t)
+{
+    if (d != w->run_dir) {
+        /* start or reversal: no period until two stamped steps of this run */
+        w->run_dir = d;
+        w->run_n = RUN_NO_REF;
+        w->span_n = 0u;
+    }
+    if (stamped == 0u) {
+        if (w->run_n != RUN_NO_REF) {
+            w->run_n = sat_add16(w->run_n, n);
+            if (w->run_n == RUN_NO_REF) {
+                w->run_n = RUN_NO_REF - 1u;
+            }
+        }
+        return;
+    }
+    if (w->run_n != RUN_NO_REF) {
+        uint32_t span_n = (uint32_t)w->run_n + stamped;
+        w->span_us = t - w->ref_us;
+        w->span_n = span_n > 0xFFFEu ? 0u : (uint16_t)span_n;
+    }
+    w->ref_us = t;
+    w->run_n = (uint16_t)(n - stamped);
+    w->last_edge_us = t;
+}
+
+/* Fold wheel w from a copy r of its interrupt record, taken at now_us. */
+static void fold(enc_loop_t *w, const encoder_isr_t *r, uint32_t now_us)
+{
+    uint16_t df = (uint16_t)(r->fwd - w->seen_fwd);
+    uint16_t db = (uint16_t)(r->back - w->seen_back);
+    uint16_t de = (uint16_t)(r->errors - w->seen_errors);
+    w->seen_fwd = r->fwd;
+    w->seen_back = r->back;
+    w->seen_errors = r->errors;
+    uint16_t edges = (uint16_t)(df + db + de);
+    w->edges += (uint32_t)df + db + de;
+    w->errors += de;
+    w->pend_edges = (uint16_t)(w->pend_edges + edges); /* the 50 Hz update empties them */
+    w->pend_errors = (uint16_t)(w->pend_errors + de);
+
+    /* stamped steps among the new ones (carry rule, encoder_isr.h) */
+    uint16_t sf = (uint8_t)r->fwd == 0u ? (df > 0u ? (uint16_t)(df - 1u) : 0u) : df;
+    uint16_t sb = (uint8_t)r->back == 0u ? (db > 0u ? (uint16_t)(db - 1u) : 0u) : db;
+    int32_t dc;
+    if ((w->bits & W_HALL) != 0u) {
+        /* one raw-forward step per pulse, signed by the hint; db are the other edges */
+        dc = w->hall_sign < 0 ? -(int32_t)df : (int32_t)df;
+        if (df != 0u) {
+            run_steps(w, w->hall_sign, df, sf, sf != 0u ? stamp_us(r->fwd_stamp, now_us) : 0u);
+            w->dir = w->hall_sign;
+        }
+    } else {
+        dc = (int32_t)df - (int32_t)db;
+        if ((w->bits & W_INVERT) != 0u) {
+            dc = -dc;
+        }
+        if (df != 0u && db != 0u) {
+            /* reversal(s) within the interval: the later stamp tells the last direction */
+            uint16_t now_st = (uint16_t)(now_us >> ENCODER_STAMP_SHIFT);
+            bool fwd_last = (uint16_t)(now_st - r->fwd_stamp) <= (uint16_t)(now_st - r->back_stamp);
+            w->run_dir = 0; /* the run restarts with the last step */
+            if (fwd_last) {
+                run_steps(w, 1, 1u, sf != 0u ? 1u : 0u, stamp_us(r->fwd_stamp, now_us));
+            } else {
+                run_steps(w, -1, 1u, sb != 0u ? 1u : 0u, stamp_us(r->back_stamp, now_us));
+            }
+        } else if (df != 0u) {
+            run_steps(w, 1, df, sf, sf != 0u ? stamp_us(r->fwd_stamp, now_us) : 0u);
+        } else if (db != 0u) {
+            run_steps(w, -1, db, sb, sb != 0u ? stamp_us(r->back_stamp, now_us) : 0u);
+        }
+        if (w->run_dir != 0) {
+            w->dir = (w->bits & W_INVERT) != 0u ? (int8_t)-w->run_dir : w->run_dir;
+        }
+    }
+    w->count += (uint32_t)dc;
+    w->pend_count += dc;
+}
+
+/* Copy wheel idx's record with interrupts masked (~30 cycles on the AVR). */
+static void copy_record(uint8_t idx, encoder_isr_t *r)
+{
+    hal_irq_state_t st = hal_irq_save();
+    *r = s_isr[idx];
+    hal_irq_restore(st);
+}
+
+static bool record_changed(const enc_loop_t *w, const encoder_isr_t *r)
+{
+    return r->fwd != w->seen_fwd || r->back != w->seen_back || r->errors != w->seen_errors;
+}
+
+/* Copy the record, then read the clock (so every stamp in the copy is older), then
+ * fold; no clock read when nothing happened since the last fold. */
+static void fold_one(uint8_t idx)
+{
+    encoder_isr_t r;
+    copy_record(idx, &r);
+    if (record_changed(&s_loop[idx], &r)) {
+        fold(&s_loop[idx], &r, hal_time_us());
+    }
 }
 
 void encoder_set_direction_hint(uint8_t idx, int8_t sign)
@@ -91,11 +220,18 @@ void encoder_set_direction_hint(uint8_t idx, int8_t sign)
     if (idx >= ENCODER_MAX || sign == 0) {
         return;
     }
+    enc_loop_t *w = &s_loop[idx];
+    if ((w->bits & W_HALL) == 0u) {
+        return;
+    }
     int8_t h = sign > 0 ? 1 : -1;
-    if (s_loop[idx].invert != 0u) {
+    if ((w->bits & W_INVERT) != 0u) {
         h = (int8_t)-h;
     }
-    s_isr[idx].hint = h; /* single byte: atomic store */
+    if (h != w->hall_sign) {
+        fold_one(idx); /* pulses so far keep the old sign */
+        w->hall_sign = h;
+    }
 }
 
 bool encoder_snapshot(uint8_t idx, encoder_snapshot_t *out)
@@ -103,16 +239,15 @@ bool encoder_snapshot(uint8_t idx, encoder_snapshot_t *out)
     if (idx >= ENCODER_MAX || out == NULL) {
         return false;
     }
-    encoder_isr_t *e = &s_isr[idx];
-    hal_irq_state_t st = hal_irq_save();
-    fold(idx);
-    out->count = (int32_t)s_loop[idx].ext_count; /* two's complement view of the wrapping counter */
-    out->edges = s_loop[idx].ext_edges;
-    out->errors = s_loop[idx].ext_errors;
-    out->last_edge_us = e->last_edge_us;
-    out->period_us = e->last_edge_us - e->prev_edge_us; /* unsigned: right across the 2^32 wrap */
-    out->dir = e->dir;
-    hal_irq_restore(st);
+    fold_one(idx);
+    const enc_loop_t *w = &s_loop[idx];
+    out->count = (int32_t)w->count;
+    out->edges = w->edges;
+    out->errors = w->errors;
+    out->last_edge_us = w->last_edge_us;
+    out->span_us = w->span_us;
+    out->span_counts = w->span_n;
+    out->dir = w->dir;
     return true;
 }
 
@@ -121,11 +256,9 @@ void encoder_set_count(uint8_t idx, int32_t count)
     if (idx >= ENCODER_MAX) {
         return;
     }
-    hal_irq_state_t st = hal_irq_save();
-    fold(idx);
-    s_loop[idx].ext_count = (uint32_t)count;
-    hal_irq_restore(st);
-    s_loop[idx].prev_count = count;
+    fold_one(idx);
+    s_loop[idx].count = (uint32_t)count;
+    s_loop[idx].pend_count = 0;
 }
 
 /* ---- configuration ---------------------------------------------------- */
@@ -141,9 +274,8 @@ uint32_t encoder_counts_per_wheel_rev(uint16_t lines_per_motor_rev, uint8_t mode
     return (uint32_t)((c + gear_den / 2u) / gear_den);
 }
 
-static bool configure_wheel(uint8_t i, const encoder_cfg_t *cfg)
+static bool configure_wheel(enc_loop_t *w, const encoder_cfg_t *cfg)
 {
-    enc_loop_t *w = &s_loop[i];
     uint32_t nm = cfg->travel_per_count_nm;
     if (nm == 0u && cfg->counts_per_wheel_rev != 0u) {
         /* pi * D / counts, with D in um -> nm: D * 1000 * pi / counts.
@@ -153,9 +285,9 @@ static bool configure_wheel(uint8_t i, const encoder_cfg_t *cfg)
         uint64_t q = (num + den / 2u) / den;
         nm = q > 0xFFFFFFFFull ? 0u : (uint32_t)q;
     }
-    w->invert = cfg->invert != 0u ? 1u : 0u;
+    w->bits = (uint8_t)((cfg->invert != 0u ? W_INVERT : 0u) | (cfg->mode == ENCODER_MODE_HALL ? W_HALL : 0u));
+    w->hall_sign = cfg->invert != 0u ? -1 : 1;
     if (nm == 0u) {
-        w->configured = 0u;
         return false;
     }
     w->nm_per_count = nm;
@@ -163,20 +295,10 @@ static bool configure_wheel(uint8_t i, const encoder_cfg_t *cfg)
     if (w->um_q8_per_count == 0u) {
         w->um_q8_per_count = 1u;
     }
-    w->max_fast_counts = (int32_t)((uint32_t)(INT32_MAX - 255) / w->um_q8_per_count);
-    w->stop_timeout_us = (uint32_t)(cfg->stop_timeout_ms != 0u ? cfg->stop_timeout_ms
-                                                               : ENCODER_DEFAULT_STOP_TIMEOUT_MS) * 1000u;
+    w->stop_timeout_ms = cfg->stop_timeout_ms != 0u ? cfg->stop_timeout_ms : (uint16_t)ENCODER_DEFAULT_STOP_TIMEOUT_MS;
     w->crossover_counts = cfg->crossover_counts != 0u ? cfg->crossover_counts
                                                       : (uint8_t)ENCODER_DEFAULT_CROSSOVER_COUNTS;
-    w->configured = 1u;
-
-    encoder_isr_t *e = &s_isr[i];
-    if (cfg->mode == ENCODER_MODE_HALL) {
-        e->table = NULL;
-    } else {
-        e->table = w->invert != 0u ? QUAD_INV : QUAD_FWD;
-    }
-    e->hint = w->invert != 0u ? -1 : 1;
+    w->bits |= W_CONFIGURED;
     return true;
 }
 
@@ -190,35 +312,17 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
     hal_irq_state_t st = hal_irq_save();
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
         encoder_isr_t *e = &s_isr[i];
-        e->count = 0u;
-        e->edges = 0u;
-        e->errors = 0u;
-        e->last_edge_us = 0u;
-        e->prev_edge_us = 0u;
-        e->table = QUAD_FWD;
-        e->ab = 0u;
-        e->dir = 0;
-        e->hint = 1;
+        e->fwd = e->back = e->errors = 0u;
+        e->fwd_stamp = e->back_stamp = 0u;
+        s_levels[i] = 0u;
 
         enc_loop_t *w = &s_loop[i];
-        w->configured = 0u;
-        w->invert = 0u;
-        w->resid_q8 = 0u;
-        w->prev_count = 0;
-        w->prev_edges = 0u;
-        w->prev_errors = 0u;
-        w->ext_count = w->ext_edges = w->ext_errors = 0u;
-        w->seen_count = w->seen_edges = w->seen_errors = 0u;
-        w->win_edges = 0u;
-        w->win_errors = 0u;
-        w->out.delta_um = 0;
-        w->out.speed_mm_s = 0;
-        w->out.count = 0;
-        w->out.method = ENCODER_SPEED_NONE;
-        w->out.flags = ENCODER_F_UNCONFIGURED;
+        *w = (enc_loop_t){0};
+        w->run_n = RUN_NO_REF;
+        w->flags = ENCODER_F_UNCONFIGURED;
         if (i < count && cfg != NULL) {
-            if (configure_wheel(i, &cfg[i])) {
-                w->out.flags = ENCODER_F_STOPPED;
+            if (configure_wheel(w, &cfg[i])) {
+                w->flags = ENCODER_F_STOPPED;
             } else {
                 ok = false;
             }
@@ -232,7 +336,7 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
 
 uint32_t encoder_travel_per_count_nm(uint8_t idx)
 {
-    return (idx < ENCODER_MAX && s_loop[idx].configured != 0u) ? s_loop[idx].nm_per_count : 0u;
+    return (idx < ENCODER_MAX && (s_loop[idx].bits & W_CONFIGURED) != 0u) ? s_loop[idx].nm_per_count : 0u;
 }
 
 /* ---- loop side -------------------------------------------------------- */
@@ -242,12 +346,12 @@ static int32_t iabs32(int32_t v) { return v < 0 ? -v : v; }
 /* Travel for dc counts plus the carried fraction; returns whole um. */
 static int32_t travel_um(enc_loop_t *w, int32_t dc)
 {
-    if (iabs32(dc) <= w->max_fast_counts) {
+    /* |dc| < 2^15 and um_q8 < 2^16 (< 256 mm per count): the product fits int32 */
+    if (iabs32(dc) < 0x8000 && w->um_q8_per_count < 0x10000u) {
         int32_t acc = dc * (int32_t)w->um_q8_per_count + (int32_t)w->resid_q8;
         w->resid_q8 = (uint8_t)(acc & 0xFF);
         return acc >> 8; /* floor (arithmetic shift); the remainder stays in resid */
     }
-    /* Rare: more than ~2 km of counts since the last update. */
     int64_t acc = (int64_t)dc * (int64_t)w->um_q8_per_count + (int64_t)w->resid_q8;
     w->resid_q8 = (uint8_t)(acc & 0xFF);
     acc >>= 8;
@@ -278,8 +382,109 @@ static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
     return d_um < 0 ? -(int32_t)v : (int32_t)v;
 }
 
+/* nm per count * n / span_us, rounded: nm/us == mm/s. One division. */
+static int32_t period_speed_mm_s(uint32_t nm_per_count, uint16_t n, uint32_t span_us)
+{
+    if (span_us == 0u) {
+        span_us = 1u;
+    }
+    if (nm_per_count < 0x1000000ul && n < 0x80u) { /* nm * n + span / 2 < 2^32 */
+        return (int32_t)((nm_per_count * n + span_us / 2u) / span_us);
+    }
+    return (int32_t)(((uint64_t)nm_per_count * n + span_us / 2u) / span_us);
+}
+
+/* since > span_us / n, without a division */
+static bool longer_than_period(uint32_t since_us, uint32_t span_us, uint16_t n)
+{
+    if (since_us < 0x10000ul) {
+        return since_us * n > span_us;
+    }
+    return (uint64_t)since_us * n > span_us;
+}
+
+static void update_wheel(enc_loop_t *w, uint32_t now_us, int32_t dt_us, uint32_t recip_q16)
+{
+    int32_t dc = w->pend_count;
+    w->pend_count = 0;
+    int32_t d_um = travel_um(w, dc);
+    w->delta_um = d_um;
+
+    /* ---- speed ---- */
+    uint8_t flags = (uint8_t)(w->flags & ENCODER_F_ERROR_RATIO);
+    int32_t adc = iabs32(dc);
+    if (dt_us <= 0) {
+        /* Same instant as the last update: keep the previous speed. */
+    } else if (adc >= (int32_t)w->crossover_counts) {
+        w->speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
+        w->method = ENCODER_SPEED_COUNT;
+    } else if (w->dir == 0) {
+        w->speed_mm_s = 0;
+        w->method = ENCODER_SPEED_NONE;
+        flags |= ENCODER_F_STOPPED;
+    } else {
+        int32_t since = (int32_t)(now_us - w->last_edge_us);
+        if (since < 0) {
+            since = 0;
+        }
+        if (dc == 0 && (uint32_t)since > (uint32_t)w->stop_timeout_ms * 1000u) {
+            w->speed_mm_s = 0;
+            w->method = ENCODER_SPEED_STOPPED;
+            flags |= ENCODER_F_STOPPED;
+        } else if (w->span_n == 0u) {
+            if (dc != 0) {
+                /* First counts after a start or a reversal: no period yet. */
+                w->speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
+                w->method = ENCODER_SPEED_COUNT;
+            } else {
+                w->speed_mm_s = 0;
+                w->method = ENCODER_SPEED_NONE;
+            }
+        } else if (dc == 0 && longer_than_period((uint32_t)since, w->span_us, w->span_n)) {
+            /* No edge for longer than the last period: the true speed is at
+             * most one count per `since`, so the estimate decays towards 0
+             * until the stop timeout. */
+            int32_t v = period_speed_mm_s(w->nm_per_count, 1u, (uint32_t)since);
+            w->speed_mm_s = w->dir < 0 ? -v : v;
+            w->method = ENCODER_SPEED_DECAY;
+        } else if (dc == 0 && w->method == ENCODER_SPEED_PERIOD) {
+            /* Same edges as last time: same speed, no division. */
+        } else {
+            /* Edge-period (M/T) method over the stamped steps of this run. */
+            int32_t v = period_speed_mm_s(w->nm_per_count, w->span_n, w->span_us);
+            w->speed_mm_s = w->dir < 0 ? -v : v;
+            w->method = ENCODER_SPEED_PERIOD;
+        }
+    }
+
+    /* ---- health: illegal-transition ratio over windows of edges ---- */
+    uint32_t we = (uint32_t)w->win_edges + w->pend_edges;
+    uint32_t wr = (uint32_t)w->win_errors + w->pend_errors;
+    w->pend_edges = 0u;
+    w->pend_errors = 0u;
+    if (we >= ENCODER_HEALTH_WINDOW_EDGES) {
+        if (wr * ENCODER_HEALTH_RATIO_DEN > we) {
+            flags |= ENCODER_F_ERROR_RATIO;
+        } else {
+            flags = (uint8_t)(flags & ~ENCODER_F_ERROR_RATIO);
+        }
+        we = 0u;
+        wr = 0u;
+    }
+    w->win_edges = (uint16_t)we;
+    w->win_errors = (uint16_t)wr;
+    w->flags = flags;
+}
+
 void encoder_update(uint32_t now_us)
 {
+    /* Records first, one short masked copy each, then the clock: every stamp is older. */
+    encoder_isr_t r[ENCODER_MAX];
+    for (uint8_t i = 0; i < ENCODER_MAX; i++) {
+        copy_record(i, &r[i]);
+    }
+    uint32_t copy_us = hal_time_us();
+
     int32_t dt_us = (int32_t)(now_us - s_prev_update_us);
     uint32_t recip_q16 = 0u;
     if (dt_us > 0) {
@@ -287,96 +492,15 @@ void encoder_update(uint32_t now_us)
         recip_q16 = (65536000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us;
         s_prev_update_us = now_us;
     }
-
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
         enc_loop_t *w = &s_loop[i];
-        if (w->configured == 0u) {
+        if ((w->bits & W_CONFIGURED) == 0u) {
             continue;
         }
-        encoder_snapshot_t s;
-        (void)encoder_snapshot(i, &s);
-
-        int32_t dc = (int32_t)((uint32_t)s.count - (uint32_t)w->prev_count);
-        w->prev_count = s.count;
-        int32_t d_um = travel_um(w, dc);
-        w->out.delta_um = d_um;
-        w->out.count = s.count;
-
-        /* ---- speed ---- */
-        uint8_t flags = (uint8_t)(w->out.flags & ENCODER_F_ERROR_RATIO);
-        int32_t adc = iabs32(dc);
-        if (dt_us <= 0) {
-            /* Same instant as the last update: keep the previous speed. */
-        } else if (adc >= (int32_t)w->crossover_counts) {
-            w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
-            w->out.method = ENCODER_SPEED_COUNT;
-        } else if (s.dir == 0) {
-            w->out.speed_mm_s = 0;
-            w->out.method = ENCODER_SPEED_NONE;
-            flags |= ENCODER_F_STOPPED;
-        } else {
-            int32_t since = (int32_t)(now_us - s.last_edge_us);
-            if (since < 0) {
-                since = 0;
-            }
-            if (dc == 0 && (uint32_t)since > w->stop_timeout_us) {
-                w->out.speed_mm_s = 0;
-                w->out.method = ENCODER_SPEED_STOPPED;
-                flags |= ENCODER_F_STOPPED;
-            } else if (s.period_us == 0u) {
-                if (dc != 0) {
-                    /* First count after a start or a reversal: no period yet. */
-                    w->out.speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
-                    w->out.method = ENCODER_SPEED_COUNT;
-                } else {
-                    w->out.speed_mm_s = 0;
-                    w->out.method = ENCODER_SPEED_NONE;
-                }
-            } else {
-                /* Edge-period method. With no edge for longer than the last
-                 * period the true speed is at most one count per `since`,
-                 * so the estimate decays towards 0 until the stop timeout. */
-                uint32_t p = s.period_us;
-                uint8_t method = ENCODER_SPEED_PERIOD;
-                if (dc == 0 && (uint32_t)since > p) {
-                    p = (uint32_t)since;
-                    method = ENCODER_SPEED_DECAY;
-                }
-                if (dc == 0 && method == ENCODER_SPEED_PERIOD && w->out.method == ENCODER_SPEED_PERIOD) {
-                    /* Same edge pair as last time: same speed, skip the division. */
-                } else {
-                    int32_t v = (int32_t)((w->nm_per_count + p / 2u) / p); /* nm/us == mm/s */
-                    w->out.speed_mm_s = s.dir < 0 ? -v : v;
-                    w->out.method = method;
-                }
-            }
+        if (record_changed(w, &r[i])) {
+            fold(w, &r[i], copy_us);
         }
-
-        /* ---- health: illegal-transition ratio over windows of edges ---- */
-        uint32_t de = s.edges - w->prev_edges;
-        uint32_t dr = s.errors - w->prev_errors;
-        w->prev_edges = s.edges;
-        w->prev_errors = s.errors;
-        if (de > 0xFFFFu) {
-            de = 0xFFFFu;
-        }
-        if (dr > de) {
-            dr = de;
-        }
-        uint32_t we = (uint32_t)w->win_edges + de;
-        uint32_t wr = (uint32_t)w->win_errors + dr;
-        if (we >= ENCODER_HEALTH_WINDOW_EDGES) {
-            if (wr * ENCODER_HEALTH_RATIO_DEN > we) {
-                flags |= ENCODER_F_ERROR_RATIO;
-            } else {
-                flags = (uint8_t)(flags & ~ENCODER_F_ERROR_RATIO);
-            }
-            we = 0u;
-            wr = 0u;
-        }
-        w->win_edges = (uint16_t)we;
-        w->win_errors = (uint16_t)wr;
-        w->out.flags = flags;
+        update_wheel(w, now_us, dt_us, recip_q16);
     }
 }
 
@@ -385,7 +509,7 @@ void encoder_motion(uint8_t idx, encoder_motion_t *out)
     if (out == NULL) {
         return;
     }
-    if (idx >= ENCODER_MAX || s_loop[idx].configured == 0u) {
+    if (idx >= ENCODER_MAX || (s_loop[idx].bits & W_CONFIGURED) == 0u) {
         out->delta_um = 0;
         out->speed_mm_s = 0;
         out->count = 0;
@@ -393,14 +517,19 @@ void encoder_motion(uint8_t idx, encoder_motion_t *out)
         out->flags = ENCODER_F_UNCONFIGURED;
         return;
     }
-    *out = s_loop[idx].out;
+    const enc_loop_t *w = &s_loop[idx];
+    out->delta_um = w->delta_um;
+    out->speed_mm_s = w->speed_mm_s;
+    out->count = (int32_t)(w->count - (uint32_t)w->pend_count); /* the count of the last update */
+    out->method = w->method;
+    out->flags = w->flags;
 }
 
 uint8_t encoder_faults(void)
 {
     uint8_t m = 0u;
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
-        if (s_loop[i].configured != 0u && (s_loop[i].out.flags & ENCODER_F_ERROR_RATIO) != 0u) {
+        if ((s_loop[i].bits & W_CONFIGURED) != 0u && (s_loop[i].flags & ENCODER_F_ERROR_RATIO) != 0u) {
             m = (uint8_t)(m | (1u << i));
         }
     }

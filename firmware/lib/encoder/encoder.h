@@ -74,14 +74,18 @@ typedef struct {
     uint32_t travel_per_count_nm;  /* optional override: wheel travel per count, nanometres */
 } encoder_cfg_t;
 
-/* Raw ISR record, copied atomically. count wraps modulo 2^32 (consumers use
- * (int32_t)(new - old)); edges and errors wrap likewise. */
+/* Totals up to now (the interrupt record folded in). count wraps modulo 2^32
+ * (consumers use (int32_t)(new - old)); edges and errors wrap likewise.
+ * The edge period is span_us / span_counts: the time between two stamped
+ * counts of the current direction run and the counts between them (M/T
+ * method, see encoder_update()); no division is done here. */
 typedef struct {
     int32_t count;         /* signed counts, forward positive */
-    uint32_t edges;        /* every hook call since init */
+    uint32_t edges;        /* level changes since init: counted steps + illegal jumps */
     uint32_t errors;       /* illegal quadrature jumps since init */
-    uint32_t last_edge_us; /* hal_time_us() of the last counted edge */
-    uint32_t period_us;    /* time between the last two same-direction counts; 0 = unknown */
+    uint32_t last_edge_us; /* time of the last stamped count (4 us resolution) */
+    uint32_t span_us;      /* period numerator; 0 with span_counts 0 = unknown */
+    uint16_t span_counts;  /* period denominator, counts; 0 = unknown */
     int8_t dir;            /* sign of the last counted step: -1, 0 (none yet), +1 */
 } encoder_snapshot_t;
 

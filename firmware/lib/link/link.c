@@ -4,8 +4,16 @@
 
 #include "hal.h"
 #include "params.h"
+#include "signing.h"
 
 #define RC_DEADZONE_US 20
+#define RC_VALID_MIN_US 800u  /* pulses outside 800..2200 us are refused (1000..2000 nominal) */
+#define RC_VALID_MAX_US 2200u
+#define SETPOINT_STEER_LIMIT_CDEG 18000 /* beyond +-180 deg or +-10 m/s a setpoint is garbage */
+#define SETPOINT_SPEED_LIMIT_MM_S 10000
+#define RAW_PWM_LIMIT 3000u             /* CALIB_PWM_MAX */
+#define GOAL_LIMIT_M 10000.0f           /* +-10 km keeps x_mm inside int32 with margin */
+#define REFUSAL_TEXT_GAP_MS 1000u
 #define PARAM_SEND_PER_POLL 2u /* paced so a PARAM list does not flood a 57600 link */
 
 static link_cfg_t s_cfg;
@@ -13,6 +21,9 @@ static link_state_t s_state;
 static mavlink_message_t s_rx_msg;
 static mavlink_status_t s_rx_status;
 static uint16_t s_param_next = 0xFFFFu; /* next index of a running PARAM_REQUEST_LIST */
+static uint32_t s_refusal_text_ms;
+static bool s_refusal_text_sent;
+static uint32_t s_provision_until_ms;
 
 void link_init(const link_cfg_t *cfg)
 {
@@ -21,6 +32,36 @@ void link_init(const link_cfg_t *cfg)
     memset(&s_rx_status, 0, sizeof s_rx_status);
     s_state.behaviour_enable = LINK_ENABLE_AVOID;
     s_param_next = 0xFFFFu;
+    s_refusal_text_sent = false;
+    uint32_t now_ms = hal_time_ms();
+    s_provision_until_ms = cfg->provision_window_ms != 0u ? now_ms + cfg->provision_window_ms : 0u;
+    signing_init(&s_rx_status, mavlink_get_channel_status(MAVLINK_COMM_0), now_ms);
+    signing_set_provisioning(cfg->provision_window_ms != 0u);
+}
+
+static void count(uint16_t *c)
+{
+    if (*c != UINT16_MAX) {
+        (*c)++;
+    }
+}
+
+static bool is_finite_f(float f)
+{
+    /* NaN compares false with everything; +-inf lies beyond FLT_MAX. */
+    return f == f && f <= 3.4e38f && f >= -3.4e38f;
+}
+
+/* A refused non-command message: counted, one STATUSTEXT per REFUSAL_TEXT_GAP_MS at most. */
+static void refuse(const UNITS_ROM char *why, uint32_t now_ms)
+{
+    count(&s_state.rx_refused);
+    if (s_refusal_text_sent && (uint32_t)(now_ms - s_refusal_text_ms) < REFUSAL_TEXT_GAP_MS) {
+        return;
+    }
+    s_refusal_text_sent = true;
+    s_refusal_text_ms = now_ms;
+    link_send_statustext(MAV_SEVERITY_WARNING, why);
 }
 
 link_state_t *link_state(void) { return &s_state; }
@@ -39,20 +80,35 @@ bool link_send(const mavlink_message_t *msg)
     return true;
 }
 
-void link_send_statustext(uint8_t severity, const char *text)
+void link_send_statustext(uint8_t severity, const UNITS_ROM char *text) { link_send_statustext_n(severity, text, 0xFFu); }
+
+void link_send_statustext_n(uint8_t severity, const UNITS_ROM char *text, uint8_t n)
 {
     mavlink_message_t msg;
     char t[50];
     memset(t, 0, sizeof t);
-    strncpy(t, text, sizeof t);
+    uint8_t k = 0u;
+    for (uint8_t i = 0; k < sizeof t && text[i] != '\0'; i++) {
+        if (text[i] == '#' && n != 0xFFu) {
+            if (n >= 10u && k < sizeof t) {
+                t[k++] = (char)('0' + (n / 10u) % 10u);
+            }
+            if (k < sizeof t) {
+                t[k++] = (char)('0' + n % 10u);
+            }
+            n = 0xFFu;
+        } else {
+            t[k++] = text[i];
+        }
+    }
     mavlink_msg_statustext_pack(s_cfg.sysid, s_cfg.compid, &msg, severity, t, 0, 0);
     (void)link_send(&msg);
 }
 
-static void send_command_ack(uint16_t command, uint8_t result, uint8_t to_sys, uint8_t to_comp)
+static void send_command_ack(uint16_t command, uint8_t result, uint8_t reason, uint8_t to_sys, uint8_t to_comp)
 {
     mavlink_message_t msg;
-    mavlink_msg_command_ack_pack(s_cfg.sysid, s_cfg.compid, &msg, command, result, 0, 0, to_sys, to_comp);
+    mavlink_msg_command_ack_pack(s_cfg.sysid, s_cfg.compid, &msg, command, result, 0, reason, to_sys, to_comp);
     (void)link_send(&msg);
 }
 
@@ -85,26 +141,69 @@ int16_t link_rc_to_range(uint16_t pulse_us, int16_t full)
     return (int16_t)((d * full) / 500);
 }
 
-static bool for_us(uint8_t target_system, uint8_t target_component)
+/* Addressed to this robot: system ours (or 0 when broadcast is allowed), component ours or 0.
+ * Anything else is another system's business: ignored and counted. */
+static bool addressed(uint8_t target_system, uint8_t target_component, bool broadcast_ok)
 {
-    return (target_system == 0u || target_system == s_cfg.sysid) &&
-           (target_component == 0u || target_component == s_cfg.compid);
+    bool sys = target_system == s_cfg.sysid || (target_system == 0u && broadcast_ok);
+    bool comp = target_component == 0u || target_component == s_cfg.compid;
+    if (!sys || !comp) {
+        if (target_system == 0u && comp) {
+            return false; /* broadcast where not allowed: the caller refuses it */
+        }
+        count(&s_state.rx_other_target);
+        return false;
+    }
+    return true;
+}
+
+/* 0 or 1 exactly (flags and switches). */
+static bool is_bool(float f) { return f == 0.0f || f == 1.0f; }
+
+/* LINK_REFUSAL_* of params p[0..n-1] that must each be 0 or 1; 0 when fine. */
+static uint8_t check_bools(const float *p, uint8_t n)
+{
+    for (uint8_t i = 0; i < n; i++) {
+        if (!is_finite_f(p[i])) {
+            return LINK_REFUSAL_NOT_FINITE;
+        }
+        if (!is_bool(p[i])) {
+            return LINK_REFUSAL_OUT_OF_RANGE;
+        }
+    }
+    return 0u;
 }
 
 static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
 {
     mavlink_command_long_t c;
     mavlink_msg_command_long_decode(m, &c);
-    if (!for_us(c.target_system, c.target_component)) {
+    /* E-stop may be broadcast (stop every robot in the field); everything else is addressed. */
+    bool bcast_ok = c.command == MAV_CMD_AGNAV_ESTOP;
+    if (!addressed(c.target_system, c.target_component, bcast_ok)) {
+        if (c.target_system == 0u && (c.target_component == 0u || c.target_component == s_cfg.compid)) {
+            count(&s_state.rx_refused);
+            send_command_ack(c.command, MAV_RESULT_DENIED, LINK_REFUSAL_BROADCAST, m->sysid, m->compid);
+        }
         return;
     }
+    const float p[3] = {c.param1, c.param2, c.param3};
     uint8_t result = MAV_RESULT_ACCEPTED;
+    uint8_t reason = 0u;
     switch (c.command) {
     case MAV_CMD_AGNAV_ESTOP:
-        s_state.estop = c.param1 > 0.5f;
+        reason = check_bools(p, 1u);
+        if (reason == 0u) {
+            s_state.estop = c.param1 == 1.0f;
+        }
         break;
     case MAV_CMD_COMPONENT_ARM_DISARM:
-        if (c.param1 > 0.5f) {
+        /* param2 (force) is not used: nothing bypasses the failsafe. */
+        reason = check_bools(p, 1u);
+        if (reason != 0u) {
+            break;
+        }
+        if (c.param1 == 1.0f) {
             s_state.arm_request = true;
         } else {
             s_state.setpoint.valid = false;
@@ -112,44 +211,94 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
         }
         break;
     case MAV_CMD_AGNAV_SET_BEHAVIOURS:
-        s_state.behaviour_enable = (uint8_t)((c.param1 > 0.5f ? LINK_ENABLE_FOLLOW_WALL : 0u) |
-                                             (c.param2 > 0.5f ? LINK_ENABLE_GOAL_SEEK : 0u) |
-                                             (c.param3 > 0.5f ? LINK_ENABLE_AVOID : 0u));
+        reason = check_bools(p, 3u);
+        if (reason == 0u) {
+            s_state.behaviour_enable = (uint8_t)((c.param1 == 1.0f ? LINK_ENABLE_FOLLOW_WALL : 0u) |
+                                                 (c.param2 == 1.0f ? LINK_ENABLE_GOAL_SEEK : 0u) |
+                                                 (c.param3 == 1.0f ? LINK_ENABLE_AVOID : 0u));
+        }
         break;
     case MAV_CMD_PREFLIGHT_STORAGE:
         /* param1: 0 read parameters back from EEPROM, 1 write them (boot-time ones such as
          * DRIVE_KIND take effect at the next boot). Other param1 values: unsupported. */
-        if (c.param1 > 0.5f && c.param1 < 1.5f) {
+        if (!is_finite_f(c.param1)) {
+            reason = LINK_REFUSAL_NOT_FINITE;
+        } else if (c.param1 == 1.0f) {
             result = params_save(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
-        } else if (c.param1 < 0.5f && c.param1 > -0.5f) {
+        } else if (c.param1 == 0.0f) {
             result = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
         } else {
             result = MAV_RESULT_UNSUPPORTED;
+            reason = LINK_REFUSAL_OUT_OF_RANGE;
         }
         break;
     default:
         result = MAV_RESULT_UNSUPPORTED;
+        reason = LINK_REFUSAL_UNSUPPORTED;
         break;
     }
+    if (reason != 0u) {
+        count(&s_state.rx_refused);
+        if (result == MAV_RESULT_ACCEPTED) {
+            result = MAV_RESULT_DENIED;
+        }
+    }
     (void)now_ms;
-    send_command_ack(c.command, result, m->sysid, m->compid);
+    send_command_ack(c.command, result, reason, m->sysid, m->compid);
 }
 
-static void handle_param_set(const mavlink_message_t *m)
+/* SETUP_SIGNING: set or clear the key. Accepted only when the frame was verified with the
+ * current key, or (signed or not) while the provisioning window is open. */
+static void handle_setup_signing(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_setup_signing_t ss;
+    mavlink_msg_setup_signing_decode(m, &ss);
+    if (!addressed(ss.target_system, ss.target_component, false)) {
+        if (ss.target_system == 0u) {
+            refuse(LINK_TEXT("SETUP_SIGNING: broadcast, refused"), now_ms);
+        }
+        return;
+    }
+    bool verified = signing_state() == SIGNING_ON && (m->incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
+    bool window = s_provision_until_ms != 0u && (int32_t)(s_provision_until_ms - now_ms) > 0;
+    if (!verified && !window) {
+        refuse(LINK_TEXT("SETUP_SIGNING: not signed with the current key, refused"), now_ms);
+        return;
+    }
+    signing_set_key(ss.secret_key, ss.initial_timestamp);
+    if (signing_state() == SIGNING_ON) {
+        link_send_statustext(MAV_SEVERITY_NOTICE, LINK_TEXT("signing: key set"));
+    } else {
+        link_send_statustext(MAV_SEVERITY_NOTICE, LINK_TEXT("signing: key cleared"));
+    }
+}
+
+static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
 {
     mavlink_param_set_t ps;
     mavlink_msg_param_set_decode(m, &ps);
-    if (!for_us(ps.target_system, ps.target_component)) {
+    if (!addressed(ps.target_system, ps.target_component, false)) {
+        if (ps.target_system == 0u) {
+            refuse(LINK_TEXT("PARAM_SET: broadcast, refused"), now_ms);
+        }
         return;
     }
     int16_t idx = params_find(ps.param_id);
     if (idx < 0) {
-        link_send_statustext(MAV_SEVERITY_WARNING, "PARAM_SET: unknown parameter");
+        count(&s_state.rx_refused);
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: unknown parameter"));
         return;
     }
-    int32_t v = (int32_t)(ps.param_value >= 0.0f ? ps.param_value + 0.5f : ps.param_value - 0.5f);
-    if (params_set((uint16_t)idx, v) != PARAMS_OK) {
-        link_send_statustext(MAV_SEVERITY_WARNING, "PARAM_SET: value out of range, refused");
+    /* Outside +-2^24 a float no longer holds every integer and the int32 cast could overflow. */
+    bool ok = is_finite_f(ps.param_value) && ps.param_value > -16777216.0f && ps.param_value < 16777216.0f;
+    int32_t v = ok ? (int32_t)(ps.param_value >= 0.0f ? ps.param_value + 0.5f : ps.param_value - 0.5f) : 0;
+    if (!ok || params_set((uint16_t)idx, v) != PARAMS_OK) {
+        count(&s_state.rx_refused);
+        if (ok) {
+            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: value out of range, refused"));
+        } else {
+            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: value not finite, refused"));
+        }
     }
     send_param((uint16_t)idx); /* the current value either way, as the protocol asks */
 }
@@ -167,7 +316,19 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT: {
         mavlink_agnav_drive_setpoint_t sp;
         mavlink_msg_agnav_drive_setpoint_decode(m, &sp);
-        if (!for_us(sp.target_system, sp.target_component)) {
+        if (!addressed(sp.target_system, sp.target_component, false)) {
+            if (sp.target_system == 0u) {
+                refuse(LINK_TEXT("SETPOINT: broadcast, refused"), now_ms);
+            }
+            break;
+        }
+        bool ok = sp.mode <= AGNAV_DRIVE_RAW_PWM && sp.steer_cdeg >= -SETPOINT_STEER_LIMIT_CDEG &&
+                  sp.steer_cdeg <= SETPOINT_STEER_LIMIT_CDEG && sp.speed_mm_s >= -SETPOINT_SPEED_LIMIT_MM_S &&
+                  sp.speed_mm_s <= SETPOINT_SPEED_LIMIT_MM_S &&
+                  (sp.mode != AGNAV_DRIVE_RAW_PWM || (sp.steer_pwm <= RAW_PWM_LIMIT && sp.speed_pwm <= RAW_PWM_LIMIT));
+        if (!ok) {
+            s_state.setpoint.valid = false;
+            refuse(LINK_TEXT("SETPOINT: mode or value out of range, refused (stop)"), now_ms);
             break;
         }
         s_state.setpoint.steer_cdeg = sp.steer_cdeg;
@@ -185,16 +346,25 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_RC_CHANNELS_OVERRIDE: {
         mavlink_rc_channels_override_t rc;
         mavlink_msg_rc_channels_override_decode(m, &rc);
-        if (!for_us(rc.target_system, rc.target_component)) {
+        if (!addressed(rc.target_system, rc.target_component, false)) {
+            if (rc.target_system == 0u) {
+                refuse(LINK_TEXT("RC_OVERRIDE: broadcast, refused"), now_ms);
+            }
             break;
         }
-        bool released = (rc.chan1_raw == 0u || rc.chan1_raw == UINT16_MAX) &&
-                        (rc.chan3_raw == 0u || rc.chan3_raw == UINT16_MAX);
+        bool rel1 = rc.chan1_raw == 0u || rc.chan1_raw == UINT16_MAX;
+        bool rel3 = rc.chan3_raw == 0u || rc.chan3_raw == UINT16_MAX;
+        if ((!rel1 && (rc.chan1_raw < RC_VALID_MIN_US || rc.chan1_raw > RC_VALID_MAX_US)) ||
+            (!rel3 && (rc.chan3_raw < RC_VALID_MIN_US || rc.chan3_raw > RC_VALID_MAX_US))) {
+            s_state.manual.valid = false;
+            refuse(LINK_TEXT("RC_OVERRIDE: pulse outside 800..2200 us, refused (stop)"), now_ms);
+            break;
+        }
         /* Channel 1 is roll/steering (right stick right = turn right = negative), channel 3 throttle. */
         s_state.manual.steer_cdeg = (int16_t)-link_rc_to_range(rc.chan1_raw, s_cfg.manual_max_steer_cdeg);
         s_state.manual.speed_mm_s = link_rc_to_range(rc.chan3_raw, s_cfg.manual_max_speed_mm_s);
         s_state.manual.rx_ms = now_ms;
-        s_state.manual.valid = !released;
+        s_state.manual.valid = !(rel1 && rel3);
         s_state.host_heartbeat_ms = now_ms;
         s_state.host_seen = true;
         break;
@@ -202,12 +372,25 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_MANUAL_CONTROL: {
         mavlink_manual_control_t mc;
         mavlink_msg_manual_control_decode(m, &mc);
-        if (mc.target != 0u && mc.target != s_cfg.sysid) {
+        if (mc.target != s_cfg.sysid) {
+            if (mc.target == 0u) {
+                refuse(LINK_TEXT("MANUAL_CONTROL: broadcast, refused"), now_ms);
+            } else {
+                count(&s_state.rx_other_target);
+            }
             break;
         }
-        /* x: forward stick -1000..1000; r: yaw stick, positive = clockwise = right. */
-        s_state.manual.speed_mm_s = (int16_t)(((int32_t)mc.x * s_cfg.manual_max_speed_mm_s) / 1000);
-        s_state.manual.steer_cdeg = (int16_t)(-((int32_t)mc.r * s_cfg.manual_max_steer_cdeg) / 1000);
+        /* x: forward stick -1000..1000; r: yaw stick, positive = clockwise = right.
+         * INT16_MAX marks an axis as unused (MAVLink): it reads as centred. */
+        int16_t x = mc.x == INT16_MAX ? 0 : mc.x;
+        int16_t r = mc.r == INT16_MAX ? 0 : mc.r;
+        if (x < -1000 || x > 1000 || r < -1000 || r > 1000) {
+            s_state.manual.valid = false;
+            refuse(LINK_TEXT("MANUAL_CONTROL: axis outside -1000..1000, refused (stop)"), now_ms);
+            break;
+        }
+        s_state.manual.speed_mm_s = (int16_t)(((int32_t)x * s_cfg.manual_max_speed_mm_s) / 1000);
+        s_state.manual.steer_cdeg = (int16_t)(-((int32_t)r * s_cfg.manual_max_steer_cdeg) / 1000);
         s_state.manual.rx_ms = now_ms;
         s_state.manual.valid = true;
         s_state.host_heartbeat_ms = now_ms;
@@ -217,7 +400,17 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED: {
         mavlink_set_position_target_local_ned_t t;
         mavlink_msg_set_position_target_local_ned_decode(m, &t);
-        if (!for_us(t.target_system, t.target_component)) {
+        if (!addressed(t.target_system, t.target_component, false)) {
+            if (t.target_system == 0u) {
+                refuse(LINK_TEXT("GOAL: broadcast, refused"), now_ms);
+            }
+            break;
+        }
+        /* Position only, in the local frame: x and y must be used (type_mask bits 0, 1 clear). */
+        if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || !is_finite_f(t.x) ||
+            !is_finite_f(t.y) || t.x > GOAL_LIMIT_M || t.x < -GOAL_LIMIT_M || t.y > GOAL_LIMIT_M || t.y < -GOAL_LIMIT_M) {
+            s_state.goal.active = false;
+            refuse(LINK_TEXT("GOAL: frame, mask, NaN or beyond 10 km, refused (goal dropped)"), now_ms);
             break;
         }
         s_state.goal.x_mm = (int32_t)(t.x * 1000.0f);
@@ -229,29 +422,40 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
         handle_command(m, now_ms);
         break;
     case MAVLINK_MSG_ID_PARAM_REQUEST_LIST:
-        s_param_next = 0u;
+        if (addressed(mavlink_msg_param_request_list_get_target_system(m),
+                      mavlink_msg_param_request_list_get_target_component(m), true)) {
+            s_param_next = 0u;
+        }
         break;
     case MAVLINK_MSG_ID_PARAM_REQUEST_READ: {
         mavlink_param_request_read_t r;
         mavlink_msg_param_request_read_decode(m, &r);
+        if (!addressed(r.target_system, r.target_component, true)) {
+            break;
+        }
         int16_t idx = r.param_index >= 0 ? r.param_index : params_find(r.param_id);
         if (idx >= 0 && (uint16_t)idx < params_count()) {
             send_param((uint16_t)idx);
+        } else {
+            refuse(LINK_TEXT("PARAM_REQUEST_READ: unknown parameter"), now_ms);
         }
         break;
     }
+    case MAVLINK_MSG_ID_SETUP_SIGNING:
+        handle_setup_signing(m, now_ms);
+        break;
     case MAVLINK_MSG_ID_PARAM_SET:
-        handle_param_set(m);
+        handle_param_set(m, now_ms);
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_TABLE:
-        if (s_cfg.on_calib != 0 && for_us(mavlink_msg_agnav_calib_table_get_target_system(m),
-                                          mavlink_msg_agnav_calib_table_get_target_component(m))) {
+        if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_table_get_target_system(m),
+                                             mavlink_msg_agnav_calib_table_get_target_component(m), false)) {
             s_cfg.on_calib(m);
         }
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_REQUEST:
-        if (s_cfg.on_calib != 0 && for_us(mavlink_msg_agnav_calib_request_get_target_system(m),
-                                          mavlink_msg_agnav_calib_request_get_target_component(m))) {
+        if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_request_get_target_system(m),
+                                             mavlink_msg_agnav_calib_request_get_target_component(m), false)) {
             s_cfg.on_calib(m);
         }
         break;
@@ -266,7 +470,17 @@ void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms)
         uint8_t r = mavlink_frame_char_buffer(&s_rx_msg, &s_rx_status, data[i], NULL, NULL);
         if (r == MAVLINK_FRAMING_OK) {
             handle(&s_rx_msg, now_ms);
-        } else if (r == MAVLINK_FRAMING_BAD_CRC || r == MAVLINK_FRAMING_BAD_SIGNATURE) {
+        } else if (r == MAVLINK_FRAMING_BAD_SIGNATURE) {
+            /* CRC fine, signature check failed (signing on): classify with the library's status. */
+            if ((s_rx_msg.incompat_flags & MAVLINK_IFLAG_SIGNED) == 0u) {
+                count(&s_state.rx_unsigned);
+            } else if (s_rx_status.signing != NULL &&
+                       s_rx_status.signing->last_status == MAVLINK_SIGNING_STATUS_BAD_SIGNATURE) {
+                count(&s_state.rx_bad_signature);
+            } else {
+                count(&s_state.rx_replay); /* old timestamp, replay, or no free stream slot */
+            }
+        } else if (r == MAVLINK_FRAMING_BAD_CRC) {
             if (mavlink_get_msg_entry(s_rx_msg.msgid) == NULL) {
                 s_state.rx_unknown++; /* a message this firmware does not parse */
             } else {
@@ -283,6 +497,11 @@ void link_poll(uint32_t now_ms)
     while ((n = hal_uart_read(HAL_UART_LINK, buf, sizeof buf)) > 0u) {
         link_feed(buf, n, now_ms);
     }
+    if (s_provision_until_ms != 0u && (int32_t)(s_provision_until_ms - now_ms) <= 0) {
+        s_provision_until_ms = 0u; /* window closed: unsigned SETUP_SIGNING refused from now on */
+        signing_set_provisioning(false);
+    }
+    signing_tick(now_ms);
     for (uint8_t k = 0; k < PARAM_SEND_PER_POLL && s_param_next < params_count(); k++) {
         send_param(s_param_next++);
     }

@@ -9,6 +9,21 @@
  *
  * Frames of REP-103 (x forward, y left, CCW positive) are used inside; NED
  * inputs (SET_POSITION_TARGET_LOCAL_NED) are converted here: y_left = -y_east.
+ *
+ * Input checks (docs/safety.md "Bad commands"): every message is checked for its target
+ * (ours, or 0 = broadcast only for MAV_CMD_AGNAV_ESTOP, PARAM_REQUEST_* and HEARTBEAT; other
+ * systems' messages are ignored and counted in rx_other_target), for NaN/inf in the floats it
+ * uses and for ranges. A refused COMMAND_LONG is answered with COMMAND_ACK MAV_RESULT_DENIED
+ * (unknown ids: MAV_RESULT_UNSUPPORTED) and the LINK_REFUSAL_* reason in result_param2; other
+ * messages get a STATUSTEXT reason (at most one per second). A refused motion message also
+ * drops the current one of its kind (the robot stops rather than keep an older command).
+ * Clamps (not refusals): steering and speed within the representable range are limited by
+ * MAX_STEER_CDEG / MAX_SPEED_MM_S in the behaviour layer; RC pulses 800..1000 and 2000..2200 us
+ * count as full deflection.
+ *
+ * Signing (firmware/lib/signing): with a key set, unsigned, wrongly signed and replayed frames
+ * are dropped before dispatch and counted. SETUP_SIGNING sets or (all-zero key) clears the key
+ * when it arrives signed with the current key, or in the provisioning window.
  */
 #ifndef AGNAV_LINK_H
 #define AGNAV_LINK_H
@@ -17,6 +32,8 @@
 #include <stdint.h>
 
 #include <agnav_mavlink.h>
+
+#include "units.h"
 
 typedef struct {
     int16_t steer_cdeg;  /* positive left */
@@ -59,7 +76,21 @@ typedef struct {
     uint16_t rx_errors;  /* frames of known messages with a bad CRC */
     uint16_t rx_unknown; /* frames of messages the firmware does not parse (skipped) */
     uint16_t tx_drops;   /* frames dropped because the UART queue was full */
+    /* Refusals (all saturate at 65535; sent in SYS_STATUS errors_count1..4, see docs/safety.md). */
+    uint16_t rx_refused;       /* messages / commands for us refused: NaN/inf, out of range, broadcast
+                                * motion, unsupported command, unauthorised key change */
+    uint16_t rx_other_target;  /* addressed to another system or component: ignored */
+    uint16_t rx_unsigned;      /* signing on: frames without a signature dropped */
+    uint16_t rx_bad_signature; /* signing on: frames signed with another key dropped */
+    uint16_t rx_replay;        /* signing on: frames with an old timestamp (replays) dropped */
 } link_state_t;
+
+/* Why a command or message was refused: COMMAND_ACK.result_param2 (AGNAV_REFUSAL in agnav.xml). */
+#define LINK_REFUSAL_NOT_FINITE 1u   /* a used float is NaN or infinite */
+#define LINK_REFUSAL_OUT_OF_RANGE 2u /* a value outside what the firmware can represent or allows */
+#define LINK_REFUSAL_BROADCAST 3u    /* motion or configuration sent to system 0: must be addressed */
+#define LINK_REFUSAL_UNSIGNED 4u     /* key change neither signed with the current key nor provisioned */
+#define LINK_REFUSAL_UNSUPPORTED 5u  /* unknown command id */
 
 typedef struct {
     uint8_t sysid;
@@ -69,6 +100,10 @@ typedef struct {
     /* Called from link_poll() with each AGNAV_CALIB_TABLE / AGNAV_CALIB_REQUEST addressed
      * to this robot (decoded there, so the link keeps no copy: RAM is scarce). May be NULL. */
     void (*on_calib)(const mavlink_message_t *msg);
+    /* Key provisioning window (ms after link_init) during which an UNSIGNED SETUP_SIGNING is
+     * accepted: main opens it only after a power-on or external reset (the USB auto-reset of
+     * the Mega, or the reset button), i.e. with someone at the robot. 0 = closed. */
+    uint16_t provision_window_ms;
 } link_cfg_t;
 
 void link_init(const link_cfg_t *cfg);
@@ -79,7 +114,16 @@ link_state_t *link_state(void);
 bool link_send(const mavlink_message_t *msg);
 uint8_t link_sysid(void);
 uint8_t link_compid(void);
-void link_send_statustext(uint8_t severity, const char *text);
+/* STATUSTEXT (up to 50 characters). The text lives in flash on the AVR: write
+ * link_send_statustext(sev, LINK_TEXT("...")) so the literal never takes RAM. */
+#if defined(__AVR__) && defined(__FLASH)
+#define LINK_TEXT(s) (__extension__({ static const __flash char link_text_[] = (s); &link_text_[0]; }))
+#else
+#define LINK_TEXT(s) (s)
+#endif
+void link_send_statustext(uint8_t severity, const UNITS_ROM char *text);
+/* The same with the first '#' of text replaced by the decimal n (0..99): "sonar #: ...". */
+void link_send_statustext_n(uint8_t severity, const UNITS_ROM char *text, uint8_t n);
 /* Hand one received byte stream chunk to the parser (used by link_poll and by tests). */
 void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms);
 

@@ -125,12 +125,18 @@ params_result_t params_load(uint16_t addr)
 {
     params_header_t h;
     hal_eeprom_read(addr, &h, sizeof h);
-    if (h.magic != PARAMS_MAGIC || h.count != s_count) {
-        return PARAMS_STORAGE;
+    if (h.magic == 0xFFFFu && h.count == 0xFFFFu) {
+        return PARAMS_STORAGE; /* erased: never saved */
+    }
+    if (h.magic != PARAMS_MAGIC || h.count == 0u || h.count > 512u) {
+        return PARAMS_CORRUPT;
+    }
+    if (h.count > s_count) {
+        return PARAMS_STORAGE; /* written by a newer firmware: do not guess */
     }
     uint16_t crc = crc16_ccitt_false_update(CRC16_CCITT_FALSE_INIT, &h, sizeof h);
     uint16_t a = (uint16_t)(addr + sizeof h);
-    for (uint16_t i = 0; i < s_count; i++) {
+    for (uint16_t i = 0; i < h.count; i++) {
         int32_t v;
         hal_eeprom_read(a, &v, sizeof v);
         crc = crc16_ccitt_false_update(crc, &v, sizeof v);
@@ -139,11 +145,11 @@ params_result_t params_load(uint16_t addr)
     uint16_t stored;
     hal_eeprom_read(a, &stored, sizeof stored);
     if (stored != crc) {
-        return PARAMS_STORAGE;
+        return PARAMS_CORRUPT;
     }
     a = (uint16_t)(addr + sizeof h);
     params_result_t result = PARAMS_OK;
-    for (uint16_t i = 0; i < s_count; i++) {
+    for (uint16_t i = 0; i < h.count; i++) {
         int32_t v;
         hal_eeprom_read(a, &v, sizeof v);
         a = (uint16_t)(a + sizeof v);

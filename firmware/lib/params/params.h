@@ -40,7 +40,8 @@ typedef enum {
     PARAMS_OK = 0,
     PARAMS_UNKNOWN = -1,
     PARAMS_OUT_OF_RANGE = -2,
-    PARAMS_STORAGE = -3
+    PARAMS_STORAGE = -3,
+    PARAMS_CORRUPT = -4 /* load: a record is there (not erased) but its header or CRC is bad */
 } params_result_t;
 
 /* The table lives in flash on the AVR (const RAM is scarce there): declare it
@@ -59,8 +60,11 @@ params_result_t params_set(uint16_t index, int32_t value);
 
 /* EEPROM persistence at addr: {magic, count, values[], crc16}. Load leaves every
  * value as it is (the module defaults, at boot) and returns PARAMS_STORAGE when the
- * record is missing, corrupt or of another table size; a stored value outside
- * today's range is skipped (PARAMS_STORAGE) and the others are applied. */
+ * record is missing (erased) or longer than today's table, PARAMS_CORRUPT when its
+ * header or CRC is bad; a stored value outside today's range is skipped
+ * (PARAMS_STORAGE) and the others are applied. A record with FEWER values than the
+ * table was written before rows were appended (keys are append-only): its values
+ * are applied and the newer rows keep their defaults (PARAMS_OK). */
 params_result_t params_save(uint16_t addr);
 params_result_t params_load(uint16_t addr);
 

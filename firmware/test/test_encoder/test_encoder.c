@@ -120,11 +120,14 @@ static void test_encoder_edge_counts_illegal_jump_as_error_not_motion(void)
     quad_steps(0, 3, 100u); /* 0 -> 2 -> 3 -> 1 */
     sim_encoder_edge(0, 2u); /* 1 -> 2: both lines changed */
     sim_encoder_edge(0, 1u); /* 2 -> 1: again */
-    sim_encoder_edge(0, 1u); /* 1 -> 1: repeated level, no motion, no error */
+    sim_encoder_edge(0, 1u); /* 1 -> 1: repeated level, no motion, no error, no edge */
     (void)encoder_snapshot(0, &s);
     TEST_ASSERT_EQUAL_INT32_MESSAGE(3, s.count, "illegal jumps do not move the count");
     TEST_ASSERT_EQUAL_UINT32_MESSAGE(2u, s.errors, "two illegal jumps");
-    TEST_ASSERT_EQUAL_UINT32_MESSAGE(6u, s.edges, "all six hook calls counted");
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(5u, s.edges, "3 steps + 2 jumps; the repeated level is no edge");
+    quad_steps(0, 1, 100u); /* 1 -> 0: decoding goes on from the levels after the jumps */
+    (void)encoder_snapshot(0, &s);
+    TEST_ASSERT_EQUAL_INT32(4, s.count);
 }
 
 static void test_encoder_edge_ignores_out_of_range_index(void)
@@ -213,7 +216,8 @@ static void test_encoder_update_speed_is_right_across_micros_wrap(void)
     }
     TEST_ASSERT_TRUE_MESSAGE(hal_time_us() < 100000u, "clock really wrapped");
     (void)encoder_snapshot(0, &s);
-    TEST_ASSERT_EQUAL_UINT32_MESSAGE(10000u, s.period_us, "period across the wrap");
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(20000u, s.span_us, "period across the wrap: 20 ms ...");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(2u, s.span_counts, "... over 2 counts");
     encoder_motion(0, &m);
     TEST_ASSERT_EQUAL_INT32_MESSAGE(5, m.speed_mm_s, "50 um / 10 ms");
     TEST_ASSERT_EQUAL_UINT8(ENCODER_SPEED_PERIOD, m.method);
@@ -297,6 +301,11 @@ static void test_encoder_update_uses_period_below_crossover_and_count_above(void
     sim_time_advance_us(20000u - 7u * 2857u);
     encoder_update(hal_time_us());
     encoder_motion(0, &m);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(ENCODER_SPEED_COUNT, m.method, "first counts of a run: no period yet");
+    quad_steps(0, 7, 2857u);
+    sim_time_advance_us(20000u - 7u * 2857u);
+    encoder_update(hal_time_us());
+    encoder_motion(0, &m);
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(ENCODER_SPEED_PERIOD, m.method, "7 counts per tick");
     TEST_ASSERT_INT32_WITHIN(1, 17, m.speed_mm_s); /* 50 um / 2.857 ms */
     quad_steps(0, 8, 2500u); /* 8 counts in 20 ms */
@@ -334,7 +343,14 @@ static void test_encoder_snapshot_copies_record_and_restores_irq_state(void)
     TEST_ASSERT_FALSE_MESSAGE(sim_irq_masked(), "interrupts re-enabled");
     TEST_ASSERT_EQUAL_INT32(2, s.count);
     TEST_ASSERT_EQUAL_UINT32(5600u, s.last_edge_us);
-    TEST_ASSERT_EQUAL_UINT32(300u, s.period_us);
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, s.span_counts, "one stamped step of the run so far");
+    quad_steps(0, 3, 400u); /* 1200 us over 3 steps since the last one seen */
+    (void)encoder_snapshot(0, &s);
+    TEST_ASSERT_EQUAL_INT32(5, s.count);
+    TEST_ASSERT_EQUAL_UINT32(6800u, s.last_edge_us);
+    TEST_ASSERT_EQUAL_UINT32(1200u, s.span_us);
+    TEST_ASSERT_EQUAL_UINT16(3u, s.span_counts);
+    TEST_ASSERT_EQUAL_INT8(1, s.dir);
     hal_irq_state_t st = hal_irq_save();
     (void)encoder_snapshot(0, &s);
     TEST_ASSERT_TRUE_MESSAGE(sim_irq_masked(), "a masked caller stays masked");
@@ -394,6 +410,77 @@ static void test_encoder_init_rejects_config_without_travel(void)
     TEST_ASSERT_EQUAL_UINT32(0u, encoder_travel_per_count_nm(1));
 }
 
+#if defined(__AVR_ATmega2560__)
+/* ---- the ATmega2560's hand-written PORTK vector (hal/avr/encoder_pcint_avr.S) -----------
+ * Under simavr: PORTK driven as outputs (PINK follows), the vector called like the hardware
+ * would after each change; the loop side must read the same as from the generic hook. */
+#include <avr/io.h>
+
+static uint8_t s_pink;
+
+static void pink_set(uint8_t levels)
+{
+    s_pink = levels;
+    PORTK = levels;
+    uint8_t sreg = SREG;
+    __asm__ volatile("call __vector_11" ::: "memory"); /* PCINT2_vect; its reti sets I */
+    SREG = sreg;
+}
+
+/* n quadrature steps of encoder idx on PORTK (A = PK(2 idx), B = PK(2 idx + 1)). */
+static void pink_steps(uint8_t idx, int16_t n)
+{
+    static const uint8_t FWD[4] = {2u, 0u, 3u, 1u}; /* as quad_steps(), ab = (A << 1) | B */
+    static const uint8_t BWD[4] = {1u, 3u, 0u, 2u};
+    uint8_t sh = (uint8_t)(2u * idx);
+    for (int16_t k = 0; k < (n < 0 ? -n : n); k++) {
+        uint8_t pins = (uint8_t)((s_pink >> sh) & 3u);
+        uint8_t ab = (uint8_t)(((pins & 1u) << 1) | (pins >> 1));
+        ab = n > 0 ? FWD[ab] : BWD[ab];
+        pins = (uint8_t)(((ab & 1u) << 1) | (ab >> 1));
+        pink_set((uint8_t)((s_pink & (uint8_t)~(3u << sh)) | (uint8_t)(pins << sh)));
+    }
+}
+
+static void test_encoder_avr_vector_decodes_four_encoders(void)
+{
+    encoder_cfg_t c[4] = {quad_cfg(0), quad_cfg(0), quad_cfg(1), quad_cfg(0)};
+    encoder_snapshot_t s;
+    TEST_ASSERT_TRUE(encoder_init(4, c));
+    DDRK = 0xFFu;
+    PORTK = 0u;
+    s_pink = 0u;
+    GPIOR1 = PINK; /* what hal_encoder_attach() seeds on the board */
+    TEST_ASSERT_EQUAL_HEX8_MESSAGE(0u, PINK, "PINK follows PORTK");
+
+    pink_steps(3, 300);  /* low byte of the counter wraps once (carry path) */
+    pink_steps(1, -37);
+    pink_steps(2, 9);    /* wheel 2 is inverted */
+    pink_steps(0, 2);
+    pink_set((uint8_t)(s_pink ^ 0x03u)); /* encoder 0: both lines at once, illegal */
+    pink_set((uint8_t)(s_pink ^ 0x03u)); /* and back: illegal again */
+    pink_set(s_pink);                    /* nothing changed */
+    pink_set((uint8_t)(s_pink ^ 0x11u)); /* A of encoders 0 and 2 in one interrupt */
+    (void)encoder_snapshot(3, &s);
+    TEST_ASSERT_EQUAL_INT32(300, s.count);
+    TEST_ASSERT_EQUAL_UINT32(300u, s.edges);
+    TEST_ASSERT_EQUAL_INT8(1, s.dir);
+    (void)encoder_snapshot(1, &s);
+    TEST_ASSERT_EQUAL_INT32(-37, s.count);
+    TEST_ASSERT_EQUAL_INT8(-1, s.dir);
+    (void)encoder_snapshot(2, &s);
+    /* 9 steps forward end at ab = 2; A toggling (2 -> 0) is a backward step, +1 when inverted */
+    TEST_ASSERT_EQUAL_INT32_MESSAGE(-9 + 1, s.count, "inverted wheel, then the shared interrupt");
+    (void)encoder_snapshot(0, &s);
+    /* 2 steps forward end at ab = 3; after the two jumps A toggles: 3 -> 1, forward */
+    TEST_ASSERT_EQUAL_INT32_MESSAGE(2 + 1, s.count, "illegal jumps do not count; the shared step does");
+    TEST_ASSERT_EQUAL_UINT32(2u, s.errors);
+    TEST_ASSERT_EQUAL_UINT32(5u, s.edges);
+    DDRK = 0u;
+    PORTK = 0u;
+}
+#endif
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -416,5 +503,8 @@ int main(void)
     RUN_TEST(test_encoder_update_tolerates_rare_errors);
     RUN_TEST(test_encoder_counts_per_wheel_rev_folds_x4_and_gear);
     RUN_TEST(test_encoder_init_rejects_config_without_travel);
+#if defined(__AVR_ATmega2560__)
+    RUN_TEST(test_encoder_avr_vector_decodes_four_encoders);
+#endif
     return UNITY_END();
 }

@@ -86,7 +86,7 @@ static void test_params_load_keeps_defaults_on_corruption(void)
     params_save(512u);
     sim_eeprom_bytes()[512u + 5u] ^= 0x40u; /* inside the first value */
     module_defaults(); /* a reboot */
-    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+    TEST_ASSERT_EQUAL_MESSAGE(PARAMS_CORRUPT, params_load(512u), "a bad CRC is corruption, not absence");
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT16_MESSAGE(0, s_trim_cdeg, "no value of a corrupt record is applied");
 }
@@ -115,6 +115,39 @@ static void test_params_load_skips_a_stored_value_outside_todays_range(void)
     TEST_ASSERT_EQUAL_INT16(100, s_trim_cdeg);
 }
 
+static void test_params_load_reports_corrupt_header_and_keeps_defaults(void)
+{
+    params_set(0u, 750);
+    params_save(512u);
+    sim_eeprom_bytes()[512u] ^= 0x01u; /* magic */
+    module_defaults();
+    TEST_ASSERT_EQUAL(PARAMS_CORRUPT, params_load(512u));
+    TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
+}
+
+static void test_params_load_applies_an_older_shorter_record_and_keeps_new_defaults(void)
+{
+    /* Written by a firmware whose table had only the first two rows (keys are append-only). */
+    params_init(TABLE, 2u);
+    params_set(0u, 900);
+    params_set(1u, -250);
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
+    module_defaults();
+    params_init(TABLE, 3u);
+    s_big = 77; /* today's default of the appended row */
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
+    TEST_ASSERT_EQUAL_UINT16(900u, s_timeout_ms);
+    TEST_ASSERT_EQUAL_INT16(-250, s_trim_cdeg);
+    TEST_ASSERT_EQUAL_INT32_MESSAGE(77, s_big, "a row the record does not hold keeps its default");
+}
+
+static void test_params_load_refuses_a_longer_record_from_a_newer_firmware(void)
+{
+    params_save(512u);
+    params_init(TABLE, 2u);
+    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -126,5 +159,8 @@ int main(void)
     RUN_TEST(test_params_load_keeps_defaults_on_corruption);
     RUN_TEST(test_params_load_keeps_defaults_when_erased);
     RUN_TEST(test_params_load_skips_a_stored_value_outside_todays_range);
+    RUN_TEST(test_params_load_reports_corrupt_header_and_keeps_defaults);
+    RUN_TEST(test_params_load_applies_an_older_shorter_record_and_keeps_new_defaults);
+    RUN_TEST(test_params_load_refuses_a_longer_record_from_a_newer_firmware);
     return UNITY_END();
 }

@@ -472,6 +472,8 @@ def _cmd_key(ns: argparse.Namespace) -> int:
         print(f"new signing key in {p} (mode 0600), fingerprint {fingerprint(key)}")
         print("use it with `agnav run --sign` or [link] signing = true; give the same key to every peer that verifies")
         return 0
+    if ns.action == "push":
+        return _key_push(ns)
     p = Path(ns.key_file) if ns.key_file else default_key_path()
     key = load_key(p)
     print(f"key file    {p}")
@@ -481,11 +483,44 @@ def _cmd_key(ns: argparse.Namespace) -> int:
     return 0
 
 
-subcommand("key", help="MAVLink 2 signing key: new (create, 0600) or show (fingerprint; --reveal prints the secret)",
-           args=[(("action",), {"choices": ["new", "show"]}),
-                 (("--key-file",), {"default": None, "help": "key file (default ~/.config/agnav/signing.key)"}),
-                 (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),
-                 (("--reveal",), {"action": "store_true", "help": "show: also print the secret key (hex)"})])(
+def _key_push(ns: argparse.Namespace) -> int:
+    """Load the key into the robot (SETUP_SIGNING), then prove the robot takes frames signed with it."""
+    from .keys import CLEAR_KEY, fingerprint, load_key, setup_signing_message
+    from .robot import AgnavRobot
+
+    new = CLEAR_KEY if ns.clear else load_key(ns.key_file)
+    old = load_key(ns.old_key_file) if ns.old_key_file else None
+    cfg = _config(ns)
+    ns.sign, ns.key_file = False, None  # the session signs with the OLD key (or not at all)
+    ep = _open(ns, "key", cfg)
+    try:
+        ep.set_signing_key(old)
+        if old is None:
+            print("sending unsigned: the robot accepts this only within 10 s of a power-on or reset "
+                  "(opening the USB serial port of a Mega resets it)", file=sys.stderr)
+        ep.send(setup_signing_message(ep.d, new, ep.target_system))
+        time.sleep(0.3)
+        ep.set_signing_key(None if ns.clear else new)
+        r = AgnavRobot(ep, timeout_s=ns.timeout)
+        r.param_get("SYSID_THISMAV")  # answered only if the robot accepts the new signing state
+        what = "signing cleared" if ns.clear else f"key {fingerprint(new)} set"
+        print(f"robot {ep.target_system}: {what}; it answered a request signed accordingly")
+        return 0
+    finally:
+        ep.close()
+
+
+subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerprint; --reveal prints the "
+                       "secret), push (load it into the robot with SETUP_SIGNING)",
+           args=[a for a in _LINK_ARGS if a[0][0] not in ("--sign", "--key-file")] + [
+               (("action",), {"choices": ["new", "show", "push"]}),
+               (("--key-file",), {"default": None, "help": "key file (default ~/.config/agnav/signing.key)"}),
+               (("--old-key-file",), {"default": None, "help": "push: the key the robot holds now (sign with it); "
+                                                                "without it the frame goes unsigned"}),
+               (("--clear",), {"action": "store_true", "help": "push: switch signing off on the robot"}),
+               (("--timeout",), {"type": float, "default": 1.0, "help": "push: per-request timeout, s"}),
+               (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),
+               (("--reveal",), {"action": "store_true", "help": "show: also print the secret key (hex)"})])(
     lambda ns: _guard("key", _cmd_key, ns))
 
 

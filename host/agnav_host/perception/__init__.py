@@ -8,7 +8,8 @@ Public surface (modules with a leading underscore may change without notice)::
     DriveLimits, RowFollower(Params), ProximityFollower(Params), detect_single_row,
     HeadlandTurn, headland_path, RowNavigator(Params)                             controllers
     TiltedMount, GroundParams, GroundObstacles, expected_ground_range_m,
-    ground_points, detect_ground_obstacles, terrain_roughness, GroundTracker      ground
+    ground_points, detect_ground_obstacles, terrain_roughness, GroundTracker,
+    GroundObstacleMap, scan_with_virtual_obstacles, GroundGuard(Params)           ground
     Rut, RutEstimate, RutParams, detect_ruts, RutFollower(Params)                 ruts
     Cluster, cluster_points, clusters_from_scan, Track, TrackerParams, ObstacleTracker   obstacles
 """
@@ -33,7 +34,11 @@ from ._ground import (
     TiltedMount,
     detect_ground_obstacles,
     expected_ground_range_m,
+    GroundGuard,
+    GroundGuardParams,
+    GroundObstacleMap,
     ground_points,
+    scan_with_virtual_obstacles,
     terrain_roughness,
 )
 from ._rows import (
@@ -58,6 +63,7 @@ __all__ = [
     "SingleRowEstimate", "detect_single_row", "HeadlandTurn", "headland_path", "RowNavigator", "RowNavigatorParams",
     "TiltedMount", "GroundParams", "GroundObstacles", "expected_ground_range_m", "ground_points",
     "detect_ground_obstacles", "terrain_roughness", "GroundTracker",
+    "GroundObstacleMap", "scan_with_virtual_obstacles", "GroundGuard", "GroundGuardParams",
     "Rut", "RutEstimate", "RutParams", "detect_ruts", "RutFollower", "RutFollowerParams",
     "Cluster", "cluster_points", "clusters_from_scan", "Track", "TrackerParams", "ObstacleTracker",
 ]

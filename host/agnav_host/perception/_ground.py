@@ -18,12 +18,13 @@ at range ``d`` lies at height ``z = H - d cos(alpha) sin(theta)``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from ..types import FloatArray, LaserScan, Pose2D, ScanXY
+from ..types import DriveCommand, FloatArray, LaserScan, Observation, Pose2D, ScanXY
 
 __all__ = [
     "TiltedMount",
@@ -34,6 +35,10 @@ __all__ = [
     "detect_ground_obstacles",
     "terrain_roughness",
     "GroundTracker",
+    "GroundObstacleMap",
+    "scan_with_virtual_obstacles",
+    "GroundGuardParams",
+    "GroundGuard",
 ]
 
 
@@ -60,10 +65,13 @@ class GroundParams:
     neighbour_max_gap_m: float = 0.3  # two returns count as neighbours when this close horizontally
     usable_range_m: float = 3.9  # missing returns count as a hole only where flat ground is this close
     min_hole_run: int = 2
+    min_hole_depth_m: float = 0.0  # a long reading is a hole only if its return lies this far below ground
+    # (0: ref 000's range rule alone; a robot that can cross shallow dips such as ruts sets its wheels' limit)
 
     def __post_init__(self) -> None:
-        if not (self.step_height_m > 0 and self.hole_range_m > 0 and self.roughness_max > 0 and self.min_hole_run >= 1):
-            raise ValueError("GroundParams: thresholds must be > 0 and min_hole_run >= 1")
+        if not (self.step_height_m > 0 and self.hole_range_m > 0 and self.roughness_max > 0 and self.min_hole_run >= 1
+                and self.min_hole_depth_m >= 0):
+            raise ValueError("GroundParams: thresholds must be > 0, min_hole_depth_m >= 0 and min_hole_run >= 1")
 
 
 @dataclass(frozen=True)
@@ -118,6 +126,8 @@ def detect_ground_obstacles(scan: LaserScan, tm: TiltedMount, params: GroundPara
     reach = D <= min(p.usable_range_m, scan.range_max_m)
     with np.errstate(invalid="ignore"):
         hole = valid & np.isfinite(D) & (np.asarray(scan.ranges_m, dtype=float) > D + p.hole_range_m)
+        if p.min_hole_depth_m > 0:
+            hole &= z < -p.min_hole_depth_m
         step = valid & (z > p.step_height_m)
     # runs of missing returns where flat ground was in reach
     miss = ~valid & reach
@@ -212,3 +222,142 @@ class GroundTracker:
             return obs, np.full(len(world), np.nan)
         rough = terrain_roughness(np.stack(self._hist), self.window)[-1]
         return obs, rough
+
+
+class GroundObstacleMap:
+    """Ground obstacles (holes, steps) seen by the tilted laser, remembered in the world frame.
+
+    The tilted laser sees the ground only on one line ahead; a hole the robot has driven past that line is
+    no longer in its scan. Each scan's obstacle points go, through the robot's pose, into cells of
+    ``cell_m``; cells further than ``memory_m`` from the robot are forgotten."""
+
+    def __init__(self, tm: TiltedMount, params: GroundParams | None = None, cell_m: float = 0.15,
+                 memory_m: float = 15.0) -> None:
+        if not (cell_m > 0 and memory_m > 0):
+            raise ValueError("GroundObstacleMap needs cell_m > 0 and memory_m > 0")
+        self.tm, self.params, self.cell_m, self.memory_m = tm, params or GroundParams(), cell_m, memory_m
+        self._cells: set[tuple[int, int]] = set()
+
+    def reset(self) -> None:
+        self._cells = set()
+
+    def update(self, scan: LaserScan, robot_pose: Pose2D) -> GroundObstacles:
+        """Classify ``scan`` (robot at ``robot_pose``), add its obstacles, forget far cells; returns the classification."""
+        g = detect_ground_obstacles(scan, self.tm, self.params)
+        pts = np.vstack((g.holes_xy, g.steps_xy))
+        if len(pts):
+            c, s = math.cos(robot_pose.yaw_rad), math.sin(robot_pose.yaw_rad)
+            wx = robot_pose.x_m + c * pts[:, 0] - s * pts[:, 1]
+            wy = robot_pose.y_m + s * pts[:, 0] + c * pts[:, 1]
+            ij = np.floor(np.column_stack((wx, wy)) / self.cell_m).astype(int)
+            self._cells.update(map(tuple, ij.tolist()))
+        if self._cells:
+            xy = self.points_xy
+            far = np.hypot(xy[:, 0] - robot_pose.x_m, xy[:, 1] - robot_pose.y_m) > self.memory_m
+            if far.any():
+                for ij in np.floor(xy[far] / self.cell_m).astype(int).tolist():
+                    self._cells.discard(tuple(ij))
+        return g
+
+    @property
+    def points_xy(self) -> ScanXY:
+        """Centres (k, 2) of the remembered obstacle cells, world frame, m."""
+        if not self._cells:
+            return np.zeros((0, 2))
+        return (np.array(sorted(self._cells), dtype=float) + 0.5) * self.cell_m
+
+
+def scan_with_virtual_obstacles(scan: LaserScan, sensor_pose: Pose2D, points_xy: ScanXY, radius_m: float) -> LaserScan:
+    """``scan`` with each world point of ``points_xy`` added as a post of ``radius_m``: every beam that would
+    meet the post returns the post's near side if that is nearer than its own reading. This is how a planner
+    that only reads a horizontal scan comes to avoid holes it cannot see (pure; ``sensor_pose`` is the
+    horizontal laser's world pose at the scan)."""
+    r = np.array(scan.ranges_m, dtype=float)
+    n = len(r)
+    pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    if n == 0 or len(pts) == 0:
+        return scan
+    c, s = math.cos(sensor_pose.yaw_rad), math.sin(sensor_pose.yaw_rad)
+    dx, dy = pts[:, 0] - sensor_pose.x_m, pts[:, 1] - sensor_pose.y_m
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    dist = np.hypot(lx, ly)
+    ok = (dist > radius_m) & (dist - radius_m < scan.range_max_m)
+    lx, ly, dist = lx[ok], ly[ok], dist[ok]
+    if len(dist) == 0:
+        return scan
+    bearing = np.arctan2(ly, lx)
+    half = np.arcsin(np.clip(radius_m / dist, 0.0, 1.0))
+    inc = scan.angle_increment_rad
+    lo = np.ceil((bearing - half - scan.angle_min_rad) / inc).astype(int)
+    hi = np.floor((bearing + half - scan.angle_min_rad) / inc).astype(int)
+    lo, hi = np.clip(lo, 0, n), np.clip(hi, -1, n - 1)
+    width = np.maximum(hi - lo + 1, 0)
+    if width.sum() == 0:
+        return scan
+    owner = np.repeat(np.arange(len(lo)), width)
+    beam = lo[owner] + (np.arange(width.sum()) - np.repeat(np.cumsum(width) - width, width))
+    # range to the post's near side along each beam: d cos(b) - sqrt(R^2 - d^2 sin^2(b)), b = beam - bearing
+    db = scan.angle_min_rad + inc * beam - bearing[owner]
+    along = dist[owner] * np.cos(db)
+    across2 = (dist[owner] * np.sin(db)) ** 2
+    hit = along - np.sqrt(np.maximum(radius_m * radius_m - across2, 0.0))
+    virt = np.full(n, np.inf)
+    np.minimum.at(virt, beam, hit)
+    own = np.where(np.isfinite(r) & (r > 0), r, np.inf)
+    merged = np.where(virt < own, virt, r)
+    return replace(scan, ranges_m=merged)
+
+
+class _Controller(Protocol):
+    def reset(self) -> None: ...
+
+    def step(self, obs: Observation) -> DriveCommand: ...
+
+
+@dataclass(frozen=True)
+class GroundGuardParams:
+    """The tilted laser's pose, its thresholds (holes only where the return lies ``min_hole_depth_m`` below
+    the ground: the robot drives through shallower dips), and the remembered obstacles' cells and posts."""
+
+    tilted: TiltedMount = field(default_factory=TiltedMount)
+    ground: GroundParams = field(default_factory=lambda: GroundParams(min_hole_depth_m=0.1))
+    cell_m: float = 0.15
+    post_radius_m: float = 0.11  # covers a cell (half its diagonal)
+    memory_m: float = 15.0
+
+
+class GroundGuard:
+    """Wraps a planner that reads only the horizontal scan so that it avoids holes and steps: the tilted scan
+    (``obs.extras['tilted_scan']``) feeds a :class:`GroundObstacleMap`, and the planner gets ``obs.scan`` with
+    the remembered obstacles added as posts (:func:`scan_with_virtual_obstacles`). ``detections`` counts the
+    tilted scans that reported a hole or a step."""
+
+    uses_tilted_laser = True
+
+    def __init__(self, inner: _Controller, params: GroundGuardParams | None = None) -> None:
+        self.inner = inner
+        self.params = params or GroundGuardParams()
+        p = self.params
+        self.map = GroundObstacleMap(p.tilted, p.ground, p.cell_m, p.memory_m)
+        self.detections = 0
+
+    @property
+    def uses_sonar(self) -> bool:
+        return bool(getattr(self.inner, "uses_sonar", False))
+
+    def reset(self) -> None:
+        self.inner.reset()
+        self.map.reset()
+        self.detections = 0
+
+    def step(self, obs: Observation) -> DriveCommand:
+        ts = obs.extras.get("tilted_scan")
+        if isinstance(ts, LaserScan):
+            if self.map.update(ts, obs.pose).any:
+                self.detections += 1
+        scan = obs.scan
+        pts = self.map.points_xy
+        if scan is not None and len(pts):
+            sensor = scan.pose if scan.pose is not None else obs.pose
+            obs = replace(obs, scan=scan_with_virtual_obstacles(scan, sensor, pts, self.params.post_radius_m))
+        return self.inner.step(obs)

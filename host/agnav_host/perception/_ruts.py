@@ -117,6 +117,8 @@ class RutFollower:
     """Pure pursuit to the rut midline point on the tilted scan line (``obs.extras['tilted_scan']``):
     curvature ``2 y / (x^2 + y^2)`` to the point (x, y) ahead; straight on while no rut is seen."""
 
+    uses_tilted_laser = True  # the simulator's runner then puts the tilted scan in obs.extras
+
     def __init__(self, params: RutFollowerParams | None = None) -> None:
         self.params = params or RutFollowerParams()
         self._y: float | None = None

@@ -168,13 +168,18 @@ def _fixed_sets(ts: TurnSets) -> FloatArray:
 
 
 def infer(left: float, front: float, right: float, goal_bearing_rad: float, trsh: float,
-          dsets: DistanceSets = DistanceSets(), tsets: TurnSets = TurnSets()) -> Inference:
+          dsets: DistanceSets = DistanceSets(), tsets: TurnSets = TurnSets(),
+          keep_rad: float | None = None, keep_bonus: float = 0.0, goal_side: float | None = None) -> Inference:
     """Run the 27 rules on normalised clearances (left, front, right).
 
     Firing strength is the product of the three memberships. Each fired rule's heading set is cut at
     its strength (min) and the cuts are aggregated by max; the heading change comes from
-    :func:`cla_defuzzify` with threshold ``trsh``; the speed is the strength-weighted mean of the
-    rules' speed singletons (ref 000 eq. 3)."""
+    :func:`cla_defuzzify` with threshold ``trsh`` (``keep_rad`` / ``keep_bonus``: its hysteresis);
+    the speed is the strength-weighted mean of the rules' speed singletons (ref 000 eq. 3).
+
+    A GOAL turn with the front not Far turns at least one step to the goal's side: the sign of
+    ``goal_side`` when given (the caller holds the side while the goal is nearly dead ahead, where
+    the sign of the bearing flips with every wobble of the heading), else of the bearing."""
     ml, mf, mr = dsets.memberships(left), dsets.memberships(front), dsets.memberships(right)
     fixed = _fixed_sets(tsets)
     agg = np.zeros(tsets.n)
@@ -197,25 +202,31 @@ def infer(left: float, front: float, right: float, goal_bearing_rad: float, trsh
                 if rule.turn == Turn.GOAL:
                     c = gb
                     if rule.front != Dist.FAR:  # obstacle ahead: turn at least "small" to the goal's side
-                        c = math.copysign(max(abs(c), tsets.step_rad), c if c != 0.0 else 1.0)
+                        side = goal_side if goal_side is not None else (c if c != 0.0 else 1.0)
+                        c = math.copysign(max(abs(c), tsets.step_rad), side)
                     shape = tsets.triangle(c)
                 else:
                     shape = fixed[int(rule.turn)]
                 np.maximum(agg, np.minimum(shape, a), out=agg)
                 num += a * SPEED_FRACTION[int(rule.speed)]
                 den += a
-    turn = cla_defuzzify(tsets.universe, agg, trsh, goal_bearing_rad)
+    turn = cla_defuzzify(tsets.universe, agg, trsh, goal_bearing_rad, keep_rad, keep_bonus)
     return Inference(tuple(fired), tsets.universe, agg, turn, num / den if den > 0 else 0.0)
 
 
-def cla_defuzzify(x: FloatArray, mu: FloatArray, trsh: float, prefer_rad: float = 0.0) -> float:
+def cla_defuzzify(x: FloatArray, mu: FloatArray, trsh: float, prefer_rad: float = 0.0,
+                  keep_rad: float | None = None, keep_bonus: float = 0.0) -> float:
     """Centre of the largest area (ref 000).
 
     Points whose membership is below ``trsh * max(mu)`` are dropped; the rest split into contiguous
     areas; the centroid of the largest area is returned. Areas within 5 % of the largest count as a
     tie, resolved towards ``prefer_rad`` (the goal side). ``trsh = 0`` is the plain centroid of the
     non-zero support; ``trsh = 1`` keeps only the maxima (mean of maximum). Returns 0 for an empty
-    output."""
+    output.
+
+    Hysteresis (not in ref 000; a controller running at 10-15 Hz needs it): the area that holds
+    ``keep_rad`` (the previous output), or lies nearest to it, counts ``1 + keep_bonus`` times its
+    area, so two areas of nearly equal size do not take turns from one step to the next."""
     if not 0.0 <= trsh <= 1.0:
         raise ValueError(f"trsh must be in [0, 1], got {trsh}")
     peak = float(mu.max()) if len(mu) else 0.0
@@ -226,11 +237,17 @@ def cla_defuzzify(x: FloatArray, mu: FloatArray, trsh: float, prefer_rad: float 
     k = keep.astype(np.int8)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], k, [0]))))
     starts, ends = edges[0::2], edges[1::2]
+    held = -1
+    if keep_rad is not None and keep_bonus > 0.0 and len(starts) > 1:
+        gap = [0.0 if x[s] <= keep_rad <= x[e - 1] else min(abs(x[s] - keep_rad), abs(x[e - 1] - keep_rad))
+               for s, e in zip(starts, ends)]
+        held = int(np.argmin(gap))
     best = None
-    for s, e in zip(starts, ends):
+    for i, (s, e) in enumerate(zip(starts, ends)):
         w = mu[s:e]
-        area = float(w.sum())
-        cen = float((w * x[s:e]).sum() / area) if area > 0 else float(x[s:e].mean())
+        raw = float(w.sum())
+        cen = float((w * x[s:e]).sum() / raw) if raw > 0 else float(x[s:e].mean())
+        area = raw * (1.0 + keep_bonus if i == held else 1.0)
         if best is None or area > best[0] * 1.05:
             best = (area, cen)
         elif area >= best[0] / 1.05 and abs(cen - prefer_rad) < abs(best[1] - prefer_rad):

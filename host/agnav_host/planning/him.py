@@ -11,6 +11,19 @@
    the least D_i = L_i + P_i (robot -> S_i plus S_i -> goal, ref 000). Drive to it; on arrival, or as
    soon as the direct path opens, repeat. The chosen point is held in the world frame and only
    replaced when it becomes unreachable or another is shorter by ``switch_gain_m``.
+
+Two additions for dead ends (ref 000 tests none). A wider polar grid: the laser covers 180-270 deg,
+so returns seen in the last ``memory_s`` within ``memory_radius_m`` are kept in the odometry frame
+(one per ``memory_cell_m`` cell), and once the robot is trapped (it has spent ``trapped_s`` around
+its current cell) those now outside the laser's field of view fill the grid's blind sector; without
+them an escape point behind the robot always looks free, and the robot turns to and fro between one
+ahead and one behind. The grid's cells and the full-resolution returns both count as obstacles in
+the straight-line test (a wall seen at a grazing angle leaves cells farther apart than the body is
+wide). And a memory of visited cells. The time the robot has
+spent in each ``cell_m`` cell of the odometry frame is counted, and an escape point in (or next to)
+a cell already visited costs ``visit_gain_m_s`` metres per second spent there on top of D_i, so a
+robot that has tried the bottom of a dead end or dithers in front of a wall tip picks, after a
+while, an escape point it has not tried yet. D_i is otherwise unchanged.
 """
 
 from __future__ import annotations
@@ -36,6 +49,13 @@ class HimParams:
     yaw_gain: float = 2.0
     turn_in_place_rad: float = math.radians(60.0)
     slow_radius_m: float = 0.6
+    memory_s: float = 30.0  # returns kept to fill the laser's blind sector (see the module docstring)
+    memory_cell_m: float = 0.05
+    memory_radius_m: float = 3.0
+    trapped_s: float = 4.0  # time spent around the robot's cell that counts as trapped
+    cell_m: float = 0.4  # visited-cells memory (see the module docstring)
+    visit_gain_m_s: float = 0.5
+    visit_cap_m: float = 8.0
 
     def __post_init__(self) -> None:
         if not (self.margin_m >= 0 and self.horizon_m > 0 and 0 < self.bin_rad < 0.5 and self.reach_m > 0):
@@ -90,8 +110,86 @@ class HimPlanner:
         self.params = params or HimParams()
         self.subgoal_world: tuple[float, float] | None = None
 
+        self._visited: dict[tuple[int, int], float] = {}
+        self._mem_xy = np.zeros((0, 2))
+        self._mem_t = np.zeros(0)
+        self._steps = 0
+
     def reset(self) -> None:
         self.subgoal_world = None
+        self._visited = {}
+        self._mem_xy = np.zeros((0, 2))  # remembered returns, odometry frame, m
+        self._mem_t = np.zeros(0)  # when each was last seen, s
+        self._steps = 0
+
+    def _wide_view(self, obs: Observation, view: LocalView, trapped: bool) -> LocalView:
+        """``view``, and when ``trapped`` the remembered returns that lie outside the laser's field
+        of view now; the memory is updated with ``view``'s returns (the latest sighting of a cell
+        wins; cells beyond ``memory_radius_m`` are dropped)."""
+        p = self.params
+        c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
+        off = self.spec.footprint_offset_m
+        extra = np.zeros((0, 2))
+        if trapped and p.memory_s > 0.0 and len(self._mem_xy):
+            dx, dy = self._mem_xy[:, 0] - obs.pose.x_m, self._mem_xy[:, 1] - obs.pose.y_m
+            lx, ly = c * dx + s * dy - off, -s * dx + c * dy
+            blind = np.ones(len(lx), dtype=bool)
+            scan = obs.scan
+            if scan is not None and len(scan.ranges_m):
+                sp = scan.pose if scan.pose is not None else obs.pose
+                mx = c * (sp.x_m - obs.pose.x_m) + s * (sp.y_m - obs.pose.y_m) - off
+                my = -s * (sp.x_m - obs.pose.x_m) + c * (sp.y_m - obs.pose.y_m)
+                dyaw = norm_angle_rad(sp.yaw_rad - obs.pose.yaw_rad)
+                a = norm_angle_arr(np.arctan2(ly - my, lx - mx) - dyaw)
+                a0 = scan.angle_min_rad
+                a1 = a0 + scan.angle_increment_rad * (len(scan.ranges_m) - 1)
+                blind = (a < min(a0, a1)) | (a > max(a0, a1))
+            extra = np.column_stack((lx[blind], ly[blind]))
+        self._steps += 1
+        if p.memory_s > 0.0 and (self._steps % 3 == 1 or trapped):  # every third scan is plenty
+            wx = obs.pose.x_m + c * (view.xy[:, 0] + off) - s * view.xy[:, 1]
+            wy = obs.pose.y_m + s * (view.xy[:, 0] + off) + c * view.xy[:, 1]
+            near = np.hypot(view.xy[:, 0], view.xy[:, 1]) < p.memory_radius_m
+            keep = (obs.t_s - self._mem_t <= p.memory_s) & (
+                np.hypot(self._mem_xy[:, 0] - obs.pose.x_m, self._mem_xy[:, 1] - obs.pose.y_m) < p.memory_radius_m)
+            xy = np.concatenate((np.column_stack((wx[near], wy[near])), self._mem_xy[keep]))
+            t = np.concatenate((np.full(int(near.sum()), obs.t_s), self._mem_t[keep]))
+            key = np.floor(xy / p.memory_cell_m).astype(np.int64)
+            _, first = np.unique(key[:, 0] * 2_000_003 + key[:, 1], return_index=True)  # newest first
+            self._mem_xy, self._mem_t = xy[first], t[first]
+        if not len(extra):
+            return view
+        xy = np.concatenate((view.xy, extra))
+        rng = np.hypot(xy[:, 0], xy[:, 1])
+        bear = np.arctan2(xy[:, 1], xy[:, 0])
+        order = np.argsort(bear, kind="stable")
+        return LocalView(xy[order], rng[order], bear[order], view.no_return_rad)
+
+    def _cell(self, x: float, y: float) -> tuple[int, int]:
+        c = self.params.cell_m
+        return (int(math.floor(x / c)), int(math.floor(y / c)))
+
+    def _time_here(self, cell: tuple[int, int]) -> float:
+        """Time spent in ``cell`` and its 8 neighbours, s."""
+        return sum(self._visited.get((cell[0] + di, cell[1] + dj), 0.0) for di in (-1, 0, 1) for dj in (-1, 0, 1))
+
+    def _visit_cost(self, obs: Observation, pts: FloatArray) -> FloatArray:
+        """Visited-cells cost (k,) of robot-frame points (k, 2), m: the time spent in each point's
+        cell and its 8 neighbours (neighbours count half), times ``visit_gain_m_s``, capped."""
+        p = self.params
+        out = np.zeros(len(pts))
+        if not self._visited or not len(pts):
+            return out
+        c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
+        x = pts[:, 0] + self.spec.footprint_offset_m
+        ci = np.floor((obs.pose.x_m + c * x - s * pts[:, 1]) / p.cell_m).astype(int)
+        cj = np.floor((obs.pose.y_m + s * x + c * pts[:, 1]) / p.cell_m).astype(int)
+        get = self._visited.get
+        for k in range(len(pts)):
+            i, j = int(ci[k]), int(cj[k])
+            t = 0.5 * self._time_here((i, j)) + 0.5 * get((i, j), 0.0)
+            out[k] = min(p.visit_gain_m_s * t, p.visit_cap_m)
+        return out
 
     def _to_robot(self, obs: Observation, x: float, y: float) -> tuple[float, float]:
         c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
@@ -106,7 +204,9 @@ class HimPlanner:
     def _reachable(self, pts: FloatArray, targets: FloatArray, w_free: float, w_clear: float) -> FloatArray:
         """True where the straight way to each target (t, 2) is free and the target has clearance."""
         d = np.hypot(targets[:, 0], targets[:, 1])
-        free = free_distances_m(pts, np.arctan2(targets[:, 1], targets[:, 0]), w_free, float(d.max()) + 1.0 if len(d) else 1.0)
+        # a return the body already grazes does not block moving off it (pressed against a wall tip,
+        # the plain test would rule out every escape point)
+        free = departing_free_m(pts, np.arctan2(targets[:, 1], targets[:, 0]), w_free, float(d.max()) + 1.0 if len(d) else 1.0)
         if len(pts) == 0:
             return free >= d - 0.05
         clear = np.min(np.hypot(targets[:, None, 0] - pts[None, :, 0], targets[:, None, 1] - pts[None, :, 1]), axis=1)
@@ -114,8 +214,10 @@ class HimPlanner:
 
     def step(self, obs: Observation) -> DriveCommand:
         p, spec = self.params, self.spec
-        view = local_view(obs, spec)
-        pts = view.xy  # replaced by the polar-grid cells once escape points are needed
+        cell = self._cell(obs.pose.x_m, obs.pose.y_m)
+        self._visited[cell] = self._visited.get(cell, 0.0) + spec.control_dt_s
+        view = self._wide_view(obs, local_view(obs, spec), self._time_here(cell) >= p.trapped_s)
+        pts = view.xy  # joined by the polar-grid cells once escape points are needed
         r = spec.radius_m
         d_goal, g_rel = goal_in_robot_frame(obs)
         gx, gy = self._to_robot(obs, obs.goal.x_m, obs.goal.y_m)
@@ -130,20 +232,27 @@ class HimPlanner:
             cur = None
             if self.subgoal_world is not None:
                 sx, sy = self._to_robot(obs, *self.subgoal_world)
+                if abs(math.atan2(sy, sx)) > p.turn_in_place_rad and math.hypot(sx, sy) >= p.reach_m:
+                    # still turning towards the chosen escape point: hold it (the laser's view swings
+                    # with the body, and a re-choice at every step makes the robot turn to and fro)
+                    return drive_command(spec, 0.0, p.yaw_gain * math.atan2(sy, sx))
                 if math.hypot(sx, sy) < p.reach_m or not self._reachable(pts, np.array([[sx, sy]]), r + 0.03, r)[0]:
                     self.subgoal_world = None
                 else:
-                    cur = (sx, sy, math.hypot(sx, sy) + math.hypot(gx - sx, gy - sy))
+                    cur = (sx, sy, math.hypot(sx, sy) + math.hypot(gx - sx, gy - sy)
+                           + float(self._visit_cost(obs, np.array([[sx, sy]]))[0]))
             ang, rng = polar_grid(view, p.bin_rad, p.horizon_m)
             cand = escape_points(ang, rng, r, p.margin_m, p.horizon_m)
             near = rng < p.horizon_m
-            pts = np.column_stack((rng[near] * np.cos(ang[near]), rng[near] * np.sin(ang[near])))
+            pts = np.concatenate((view.xy, np.column_stack((rng[near] * np.cos(ang[near]), rng[near] * np.sin(ang[near])))))
             best = None
             if len(cand):
                 dist = np.hypot(cand[:, 0], cand[:, 1])
                 cand, dist = cand[dist > p.reach_m], dist[dist > p.reach_m]
                 dtot = dist + np.hypot(gx - cand[:, 0], gy - cand[:, 1])
-                order = np.argsort(dtot)[:12]
+                first = np.argsort(dtot)[:24]
+                dtot[first] += self._visit_cost(obs, cand[first])
+                order = first[np.argsort(dtot[first])][:12]
                 ok = self._reachable(pts, cand[order], r + 0.03, r) if len(order) else np.zeros(0, dtype=bool)
                 if ok.any():
                     j = int(order[int(np.argmax(ok))])
@@ -151,10 +260,17 @@ class HimPlanner:
             if best is not None and (cur is None or best[2] < cur[2] - p.switch_gain_m):
                 cur = best
                 self.subgoal_world = self._to_world(obs, best[0], best[1])
-            if cur is None:  # nothing passable in view: turn towards the most open direction
-                ang, rng = polar_grid(view, p.bin_rad, p.horizon_m)
-                k = int(np.argmax(rng - 0.3 * np.abs(norm_angle_arr(ang - g_rel))))
-                return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, float(ang[k])))
+            if cur is None:  # nothing passable in view: head for the most open direction
+                # (pressed against a wall tip, every escape point fails the margin test; the way
+                # out is the direction the body can move furthest, returns behind it not blocking)
+                dirs = np.linspace(-math.pi, math.pi, 72, endpoint=False)
+                free = departing_free_m(view.xy, dirs, r, 1.0)
+                k = int(np.argmax(free - 0.3 * np.abs(norm_angle_arr(dirs - g_rel))))
+                a = float(dirs[k])
+                if abs(a) > math.radians(20.0):
+                    return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a))
+                v = 0.3 * spec.max_speed_m_s if free[k] > 0.15 else 0.0
+                return drive_command(spec, v, p.yaw_gain * a)
             target = (cur[0], cur[1])
         bearing = math.atan2(target[1], target[0])
         dist = math.hypot(*target)
@@ -170,3 +286,19 @@ class HimPlanner:
 
 def norm_angle_arr(a: FloatArray) -> FloatArray:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def departing_free_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:
+    """Like :func:`~agnav_host.planning.base.free_distances_m`, but a return the disc already
+    overlaps only blocks the directions that close in on it (moving off a wall is free)."""
+    d = np.asarray(directions_rad, dtype=float)
+    out = np.full(len(d), horizon_m)
+    if len(points_xy) == 0:
+        return out
+    ux, uy = np.cos(d)[:, None], np.sin(d)[:, None]
+    px, py = points_xy[None, :, 0], points_xy[None, :, 1]
+    along = px * ux + py * uy
+    lat = np.abs(px * uy - py * ux)
+    dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
+    dist = np.where((lat < half_width_m) & (along > 0.0), np.maximum(dist, 0.0), np.inf)
+    return np.minimum(out, dist.min(axis=1))

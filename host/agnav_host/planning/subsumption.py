@@ -28,6 +28,15 @@ the simulator nothing feeds them:
   programming parameters" and names automatic selection as future work, so this is our addition.
   The canyon case is unchanged: there the goal is dead ahead (no goal cue) or the cues disagree
   while the robot turns round, and the timer holds as before.
+
+  Second host-only extension (``wall_goal_exit``; False, or ``wall_goal_side_rad`` 0, gives the
+  firmware's exit test alone): the layer also abstains when the front is not blocked, the goal
+  lies within ``wall_goal_side_rad`` of the nose, no canyon timer is running and no front-side
+  sensor sees anything within half the engage horizon. The firmware's exit test asks for nothing
+  within the whole 1.5 m horizon; in the greenhouse a wall 1 m to the side is inside it (the
+  sonar cone at -30 deg meets it at about 1.5 m), so the layer never let go, steered away from
+  the wall towards the plant bench and stalled at its west end. The timer condition keeps the
+  layer in charge for ``wall_canyon_s`` after a blocked front, as in the canyon and the corridor.
   ``Imax = 1 / (Nmax vmax dt + R0)`` and ``Imin = 1 / (Nmin vmax dt + R0)`` (reconstructed in the
   firmware; kept as is).
 * avoid obstacle (passive motion safety): a valid echo closer than ``avoid_stop`` in the front cone
@@ -100,6 +109,10 @@ class SubsumptionParams:
     # is more than this off the nose, and let a turn on which the wall and the goal agree end a canyon
     # timer held from an earlier obstacle (see the module docstring)
     wall_goal_side_rad: float = math.radians(20.0)
+    # host only (False = the firmware's exit test alone): leave the wall layer when the front is open,
+    # the goal within wall_goal_side_rad of the nose, no canyon timer runs and the front-side sensors
+    # see nothing within half the engage horizon (see the module docstring)
+    wall_goal_exit: bool = True
     goal_speed_m_s: float = 0.4
     goal_min_speed_m_s: float = 0.08
     goal_slow_m: float = 1.0
@@ -187,6 +200,12 @@ class SubsumptionPlanner:
             return None
         if side_clear and not blocked and -math.pi / 2 <= err <= math.pi / 2:
             return None  # exit condition (ref 002 eq. 8)
+        if (p.wall_goal_exit and p.wall_goal_side_rad > 0 and not blocked and abs(err) <= p.wall_goal_side_rad
+                and max(self._timer_end) <= t
+                and not np.any(((self.cls & _FRONT_SIDE) != 0) & valid & (rng < 0.5 * self.engage_m))):
+            # host only: front open, goal near the nose, no canyon timer running and the front-side
+            # sensors clear of half the engage horizon: a wall alongside does not hold the layer
+            return None
         e = max(l, r, f)
         if e >= self.imax:
             speed = 0.0

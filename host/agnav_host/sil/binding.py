@@ -24,11 +24,12 @@ import numpy as np
 
 from .build import LIB_PATH, build_library
 
-__all__ = ["Firmware", "Outputs", "PARAMS_RESULT", "BACKENDS"]
+__all__ = ["Firmware", "Outputs", "PARAMS_RESULT", "BACKENDS", "ENCODER_FAULTS", "SONAR_FAULTS", "EEPROM_RECORDS",
+           "RESET_CAUSES"]
 
 BACKENDS = ("native", "avr")
 
-PARAMS_RESULT = {0: "ok", -1: "unknown", -2: "out of range", -3: "storage"}
+PARAMS_RESULT = {0: "ok", -1: "unknown", -2: "out of range", -3: "storage", -4: "corrupt"}
 
 
 class _COutputs(C.Structure):
@@ -78,7 +79,23 @@ _SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_eeprom_size": (C.c_uint32, []),
     "sil_eeprom_read": (None, [C.c_uint32, C.c_void_p, C.c_uint32]),
     "sil_eeprom_write": (None, [C.c_uint32, C.c_char_p, C.c_uint32]),
+    # fault injection (SIL API 2, hil/sil/sil_api.h)
+    "sil_fault_encoder": (C.c_int, [C.c_uint8, C.c_int]),
+    "sil_fault_sonar": (C.c_int, [C.c_uint8, C.c_int]),
+    "sil_eeprom_record": (C.c_int, [C.c_int, C.POINTER(C.c_uint32), C.POINTER(C.c_uint32)]),
+    "sil_eeprom_corrupt": (None, [C.c_uint32, C.c_uint32, C.c_uint8]),
+    "sil_fault_reset": (None, [C.c_int]),
+    "sil_resets": (C.c_uint32, []),
+    "sil_kick_gap_max_us": (C.c_uint32, []),
+    "sil_isr_burst": (C.c_uint32, [C.c_uint8, C.c_uint32, C.c_uint32]),
+    "sil_set_isr_cost_us": (None, [C.c_uint32]),
 }
+
+#: Fault modes and names of sil_api.h's fault-injection hooks.
+ENCODER_FAULTS = {"none": 0, "stuck": 1, "disconnected": 2, "noise": 3}
+SONAR_FAULTS = {"none": 0, "timeout": 1, "zero": 2}
+EEPROM_RECORDS = {"calib": 0, "params": 1, "signing": 2, "signing_ts": 3}
+RESET_CAUSES = {"power_on": 0, "watchdog": 1, "external": 2, "brown_out": 3}
 
 _AVR_SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_avr_set_elf": (None, [C.c_char_p]),
@@ -253,6 +270,57 @@ class Firmware:
         if self._lib.sil_param_get(name.encode(), C.byref(v)) != 0:
             raise KeyError(name)
         return int(v.value)
+
+    # ---- fault injection (hil/sil/sil_api.h "FAULT INJECTION") ----------------------------------------
+    def fault_encoder(self, idx: int, mode: str) -> None:
+        """Encoder idx: "stuck" (edges swallowed), "disconnected" (lines float high, then silence),
+        "noise" (every edge an illegal jump) or "none"."""
+        if self._lib.sil_fault_encoder(idx, ENCODER_FAULTS[mode]) != 0:
+            raise ValueError(f"encoder {idx}: bad index")
+
+    def fault_sonar(self, idx: int, mode: str) -> None:
+        """Sonar idx: "timeout" (echo never rises), "zero" (a ~10 mm echo after every trigger) or "none"."""
+        if self._lib.sil_fault_sonar(idx, SONAR_FAULTS[mode]) != 0:
+            raise ValueError(f"sonar {idx}: bad index")
+
+    def eeprom_record(self, name: str) -> tuple[int, int]:
+        """(address, length) of an EEPROM record: "calib", "params", "signing", "signing_ts"."""
+        a, n = C.c_uint32(), C.c_uint32()
+        if self._lib.sil_eeprom_record(EEPROM_RECORDS[name], C.byref(a), C.byref(n)) != 0:
+            raise KeyError(name)
+        return int(a.value), int(n.value)
+
+    def eeprom_corrupt(self, addr: int, length: int, xor_mask: int = 0xFF) -> None:
+        """Flip bits of EEPROM bytes [addr, addr + length); the firmware sees it at its next boot."""
+        self._lib.sil_eeprom_corrupt(addr, length, xor_mask)
+
+    def corrupt_record(self, name: str, offset: int = 0, length: int = 1, xor_mask: int = 0x01) -> None:
+        a, n = self.eeprom_record(name)
+        if offset + length > n:
+            raise ValueError(f"{name} record is {n} bytes")
+        self.eeprom_corrupt(a + offset, length, xor_mask)
+
+    def fault_reset(self, cause: str) -> None:
+        """Core reset now with the given cause ("watchdog", "brown_out", "external", "power_on"):
+        the world (SIL clock, queued edges, EEPROM) goes on, the firmware starts afresh."""
+        self._lib.sil_fault_reset(RESET_CAUSES[cause])
+
+    @property
+    def reset_count(self) -> int:
+        """Core resets since power-on: sil_fault_reset() and (native model / simavr) watchdog."""
+        return int(self._lib.sil_resets())
+
+    def kick_gap_max_us(self) -> int:
+        """Longest gap between two watchdog kicks (= control ticks) since the last call."""
+        return int(self._lib.sil_kick_gap_max_us())
+
+    def isr_burst(self, idx: int, n: int, period_us: int) -> int:
+        """Queue n legal quadrature edges of encoder idx, one every period_us from now."""
+        return int(self._lib.sil_isr_burst(idx, n, period_us))
+
+    def set_isr_cost_us(self, us: int) -> None:
+        """Native backend: CPU time each delivered edge takes (the loop waits); simavr ignores it."""
+        self._lib.sil_set_isr_cost_us(us)
 
     # ---- AVR backend ---------------------------------------------------------------------------------------
     @property

@@ -253,6 +253,17 @@ class PlannerHost:
         self.commands: list[tuple[int, DriveCommand]] = []
         self.turn_speed_m_s = 0.1
         self.max_steer_rad = math.radians(45.0 if sc.robot_kind != "ackermann" else 30.0)  # MAX_STEER_CDEG
+        # surveyed marker posts in the scenario (meta.landmarks) and a laser: odometry fused with the
+        # posts the laser sees (agnav_host.localisation) instead of odometry alone
+        self.localiser = None
+        if sc.laser is not None and sc.meta.get("landmarks"):
+            from ..localisation import localiser_for
+
+            self.localiser = localiser_for(sc.meta, sc.start, sc.laser.mount)
+        self._odo_stamp_ms = -1
+        # optional: more Observation.extras for the planner at each control step (e.g. a stand-in for a
+        # tracker's moving-obstacle tracks in a benchmark); called with the session
+        self.observation_extras: Callable[[SilSession], dict[str, object]] | None = None
 
     @staticmethod
     def planner_params(sc: Scenario) -> GoalSeekParams:
@@ -290,6 +301,18 @@ class PlannerHost:
         r = np.where(st == 0, np.array(f.ranges_mm[:12], dtype=float) * 1e-3, np.nan)
         return SonarFrame(f.t_us * 1e-6, st != 3, r * 2.0 / 343.0 * 1e6, r)
 
+    def _localise(self, s: SilSession) -> Pose2D:
+        """Odometry report (when new) and this step's laser scan into the localiser; its pose now."""
+        loc = self.localiser
+        assert loc is not None and self.sc.laser is not None
+        o = s.host.odometry
+        if o is not None and o.time_boot_ms != self._odo_stamp_ms:
+            self._odo_stamp_ms = o.time_boot_ms
+            loc.odometry(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
+        self._scan = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
+        loc.scan(self._scan.ranges_m, self._scan.angles_rad, s.t_s, self._scan.range_max_m)
+        return loc.pose_at(s.t_s)
+
     def __call__(self, s: SilSession, t_us: int) -> None:
         h = s.host
         if self.behaviours is not None:
@@ -304,16 +327,19 @@ class PlannerHost:
         pose = s.believed_pose()
         if pose is None:
             return
+        if self.localiser is not None:
+            pose = self._localise(s)
         goal = self.sc.goals[min(self.goal_index, len(self.sc.goals) - 1)]
         scan = None
         if self.sc.laser is not None:
-            true = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
+            true = self._scan if self.localiser is not None else self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
             scan = LaserScan(true.angle_min_rad, true.angle_increment_rad, true.ranges_m, true.range_max_m, true.stamp_s,
                              pose.compose(self.sc.laser.mount))
         o = h.odometry
         assert o is not None
         sonar = self.sonar_frame(s) if self.uses_sonar else None
-        cmd = self.ctrl.step(Observation(s.t_s, pose, o.speed_m_s, o.yaw_rate_rad_s, goal, scan, sonar))
+        extras = self.observation_extras(s) if self.observation_extras is not None else {}
+        cmd = self.ctrl.step(Observation(s.t_s, pose, o.speed_m_s, o.yaw_rate_rad_s, goal, scan, sonar, extras))
         h.setpoint_si(*self.to_setpoint(cmd))
         self.commands.append((t_us, cmd))
 

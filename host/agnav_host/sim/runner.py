@@ -122,6 +122,7 @@ def run_scenario(
     duration_s: float | None = None,
     goal: Goal | None = None,
     progress: Callable[[float, float], None] | None = None,
+    controller: Controller | None = None,
 ) -> RunResult:
     """Simulate ``sc`` with the named controller: a stand-in (``goal_seek``) or a host planner from
     agnav_host.planning (``flb``, ``him``, ...; parameters from the scenario's ``[meta.planner_params.NAME]``).
@@ -129,21 +130,27 @@ def run_scenario(
     ``goal`` replaces the scenario's goals; ``progress(t_s, duration_s)`` is called about every
     simulated second. The run ends on arrival at the last goal, a collision, falling into a hole,
     or at ``duration_s`` (the scenario's when None).
+
+    ``controller`` (anything with ``reset()`` and ``step(obs)``, e.g. a perception follower) replaces the
+    named one; ``planner`` is then only its label. A scenario's tilted laser (``[tilted_laser]``) is scanned
+    at every control step for a controller whose ``uses_tilted_laser`` is true, into
+    ``obs.extras['tilted_scan']`` (a LaserScan; ``ground_points`` of the sensor turns it into 3-D points).
     """
     if goal is not None:
         sc = replace(sc, goals=[goal])
     duration = sc.duration_s if duration_s is None else duration_s
     if not duration > 0:
         raise ValueError(f"duration_s must be > 0, got {duration}")
-    ctrl = _make_controller(sc, planner)
+    ctrl = controller if controller is not None else _make_controller(sc, planner)
     ctrl.reset()
+    use_tilted = sc.tilted_laser is not None and bool(getattr(ctrl, "uses_tilted_laser", False))
     sonar_slots = _SonarSlots(sc) if sc.sonar is not None and getattr(ctrl, "uses_sonar", False) else None
     extras: dict[str, object] = {"goals": list(sc.goals), "goal_index": 0, "meta": sc.meta}
     if "path" in sc.meta:
         extras["path"] = np.asarray(sc.meta["path"], dtype=float)
     times: list[float] = []
     ss = np.random.SeedSequence(seed)
-    rng_robot, rng_laser, rng_sonar = (np.random.default_rng(s) for s in ss.spawn(3))
+    rng_robot, rng_laser, rng_sonar, rng_tilted = (np.random.default_rng(s) for s in ss.spawn(4))  # first 3 as before
     robot = sc.make_robot()
     world = sc.world
     dt = sc.dt_s
@@ -168,6 +175,9 @@ def run_scenario(
             scan = sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None
             sonar = sonar_slots.frame(world, robot.pose, t_prev, rng_sonar) if sonar_slots is not None else None
             extras["goal_index"] = gi
+            if use_tilted:
+                assert sc.tilted_laser is not None
+                extras["tilted_scan"] = sc.tilted_laser.scan(world, robot.pose, t_prev, rng_tilted)
             obs = Observation(t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s, sc.goals[gi], scan, sonar, extras)
             t0 = time.perf_counter()
             cmd = ctrl.step(obs)

@@ -175,10 +175,21 @@ class TiltedLaser:
         c, si = math.cos(sp.yaw_rad), math.sin(sp.yaw_rad)
         wx = c * hx - si * hy
         wy = si * hx + c * hy
-        px = sp.x_m + steps[None, :] * wx[:, None]
-        py = sp.y_m + steps[None, :] * wy[:, None]
         pz = self.height_m + steps[None, :] * dz[:, None]
-        gap = pz - world.ground_height_m(px, py)  # > 0 above ground
+        # The terrain lies between z_lo and z_hi (the features' depths and heights added up), so a beam point
+        # above z_hi is certainly above ground and one below z_lo certainly under it: the height map is only
+        # looked up in between (plus one step either side, for the interpolation). Same ranges, far fewer
+        # look-ups (a 0.12 m rut: about 20 of the 200 points of a beam).
+        z_lo, z_hi = _terrain_bounds_m(world)
+        look = (pz <= z_hi + self.march_step_m) & (pz >= z_lo - self.march_step_m)
+        look[:, :-1] |= look[:, 1:]
+        look[:, 1:] |= look[:, :-1]
+        gap = np.where(pz > z_hi, 1.0, -1.0)  # > 0 above ground
+        if look.any():
+            ii, jj = np.nonzero(look)
+            px = sp.x_m + steps[jj] * wx[ii]
+            py = sp.y_m + steps[jj] * wy[ii]
+            gap[ii, jj] = pz[ii, jj] - world.ground_height_m(px, py)
         below = gap <= 0.0
         any_hit = below.any(axis=1)
         k = np.argmax(below, axis=1)
@@ -208,6 +219,14 @@ class TiltedLaser:
         y = r * np.sin(a)
         z = self.height_m - r * np.cos(a) * math.sin(self.tilt_rad)
         return np.column_stack((x, y, z))
+
+
+def _terrain_bounds_m(world: World) -> tuple[float, float]:
+    """Lowest and highest ground the world's features can make (they add up), m."""
+    lo = -sum(h.depth_m for h in world.holes) - sum(r.depth_m for r in world.ruts)
+    lo -= sum(max(0.0, -st.height_m) for st in world.steps)
+    hi = sum(max(0.0, st.height_m) for st in world.steps)
+    return lo, hi
 
 
 @dataclass(frozen=True)

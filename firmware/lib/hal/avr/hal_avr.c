@@ -15,7 +15,9 @@
  * 4 us resolution (Arduino's micros() has the same): 0.7 mm of sonar range.
  * Converting ticks to us is then two shifts, cheap enough for interrupts. */
 static volatile uint16_t s_time_overflows;
-static uint8_t s_reset_flags;
+/* .noinit: written in .init3, BEFORE the C start-up clears .bss (.init4); in .bss the
+ * cause always read 0 ("unknown") and a watchdog boot went unnoticed. */
+static uint8_t s_reset_flags __attribute__((section(".noinit")));
 
 /* The reset cause must be read (and MCUSR cleared) before the watchdog can
  * reset the part again; .init3 runs before main. */
@@ -175,43 +177,26 @@ static inline __attribute__((always_inline)) uint32_t isr_time_us(void)
 }
 
 /* ---- encoders: PORTK pin-change interrupt -----------------------------
- * The ISR runs the encoder module's inline step (encoder_isr.h) for each
- * encoder whose lines changed, with constant indexes, so there is no call and
- * the ISR saves only the registers it uses. Budget and measurement:
- * BENCHMARKS.md (encoder ISR). */
-#include "encoder_isr.h"
-static uint8_t s_encoder_mask;
-static uint8_t s_pink_last;
-
-#define ENCODER_PAIR(now, i) (uint8_t)((((now) >> (2u * (i))) & 1u) << 1 | (((now) >> (2u * (i) + 1u)) & 1u))
-
-ISR(PCINT2_vect)
-{
-    uint8_t now = PINK;
-    uint8_t changed = (uint8_t)((now ^ s_pink_last) & s_encoder_mask);
-    s_pink_last = now;
-    if (changed == 0u) {
-        return;
-    }
-    uint32_t t = isr_time_us();
-    if (changed & 0x03u) encoder_isr_step(&encoder_isr_state[0], ENCODER_PAIR(now, 0u), t);
-    if (changed & 0x0Cu) encoder_isr_step(&encoder_isr_state[1], ENCODER_PAIR(now, 1u), t);
-    if (changed & 0x30u) encoder_isr_step(&encoder_isr_state[2], ENCODER_PAIR(now, 2u), t);
-    if (changed & 0xC0u) encoder_isr_step(&encoder_isr_state[3], ENCODER_PAIR(now, 3u), t);
-}
-
+ * The vector is hand-written (encoder_pcint_avr.S): it decodes all four
+ * encoders into encoder_isr_state[] (rules: encoder/encoder_isr.h) and keeps the
+ * previous PINK in GPIOR1, which attach seeds here. Cycle budget and
+ * measurement: BENCHMARKS.md (encoder ISR). */
 void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
 {
     if (count > HAL_ENCODER_MAX) {
         count = HAL_ENCODER_MAX;
     }
-    s_encoder_mask = (uint8_t)((1u << (2u * count)) - 1u);
-    DDRK &= (uint8_t)~s_encoder_mask;
-    PORTK |= s_encoder_mask; /* pull-ups for open-collector Hall sensors */
-    s_pink_last = PINK;
-    (void)fn; /* always encoder_isr_edge on this board, see the ISR */
-    PCMSK2 = s_encoder_mask;
+    uint8_t mask = (uint8_t)((1u << (2u * count)) - 1u);
+    uint8_t sreg = SREG;
+    cli();
+    DDRK &= (uint8_t)~mask;
+    PORTK |= mask; /* pull-ups: open-collector Hall sensors; B of a Hall wheel reads 1 */
+    GPIOR1 = PINK;
+    (void)fn; /* always the assembly vector on this board */
+    PCMSK2 = mask;
+    PCIFR = (uint8_t)(1u << PCIF2); /* drop a change seen before GPIOR1 was seeded */
     PCICR |= (uint8_t)(1u << PCIE2);
+    SREG = sreg;
 }
 
 /* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 ---

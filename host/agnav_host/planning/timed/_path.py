@@ -112,8 +112,7 @@ def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelba
     """Coefficients (6, m) of x(u), y(u) for every tangent length in ``lam`` (m,) at once: the same
     equations as :func:`~._poly.poly003_coeffs` / :func:`~._poly.hermite5_coeffs` with T = 1, vectorised."""
     if form != "003":
-        cs = [_leg_coeffs(a, b, float(L), wheelbase_m, form) for L in lam]
-        return np.column_stack([c[0] for c in cs]), np.column_stack([c[1] for c in cs])
+        return _hermite5_candidates(a, b, lam, wheelbase_m)
     ca, cb = math.cos(a.yaw_rad), math.cos(b.yaw_rad)
     ta, tb = math.tan(a.yaw_rad), math.tan(b.yaw_rad)
     ka, kb = math.tan(a.steer_rad) / wheelbase_m, math.tan(b.steer_rad) / wheelbase_m
@@ -133,6 +132,30 @@ def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelba
     r2 = ayT - 2.0 * c2
     CY = np.vstack((np.full_like(lam, c0), c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
                     (12.0 * r0 - 6.0 * r1 + r2) / 2.0))
+    return CX, CY
+
+
+def _quintic_unit(p0: FloatArray | float, v0: FloatArray, a0: FloatArray, pT: FloatArray | float, vT: FloatArray,
+                  aT: FloatArray) -> FloatArray:
+    """(6, m) coefficients of :func:`~._poly.quintic_coeffs` with T = 1 for m sets of end conditions."""
+    c0 = np.broadcast_to(np.asarray(p0, dtype=float), np.shape(v0))
+    c1, c2 = v0, 0.5 * a0
+    r0 = pT - (c0 + c1 + c2)
+    r1 = vT - (c1 + 2.0 * c2)
+    r2 = aT - 2.0 * c2
+    return np.vstack((c0, c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
+                      (12.0 * r0 - 6.0 * r1 + r2) / 2.0))
+
+
+def _hermite5_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelbase_m: float) -> tuple[FloatArray, FloatArray]:
+    """(6, m) x and y coefficients of :func:`~._poly.hermite5_coeffs` (T = 1, speed = tangent length) for
+    every tangent length in ``lam`` at once."""
+    ca, sa = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
+    cb, sb = math.cos(b.yaw_rad), math.sin(b.yaw_rad)
+    ka, kb = math.tan(a.steer_rad) / wheelbase_m, math.tan(b.steer_rad) / wheelbase_m
+    l2 = lam * lam
+    CX = _quintic_unit(a.x_m, lam * ca, -l2 * ka * sa, b.x_m, lam * cb, -l2 * kb * sb)
+    CY = _quintic_unit(a.y_m, lam * sa, l2 * ka * ca, b.y_m, lam * sb, l2 * kb * cb)
     return CX, CY
 
 
@@ -211,7 +234,9 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
         hs.append(hd)
         forms.append(form)
     x, y, kappa = np.concatenate(xs), np.concatenate(ys), np.concatenate(ks)
-    yaw = np.unwrap(np.concatenate(hs))
+    h = np.concatenate(hs)
+    dh = np.diff(h)
+    yaw = np.concatenate(([h[0]], h[0] + np.cumsum((dh + math.pi) % (2.0 * math.pi) - math.pi)))  # unwrapped
     seg = np.hypot(np.diff(x), np.diff(y))
     s = np.concatenate(([0.0], np.cumsum(seg)))
     ends = np.cumsum([len(h) for h in hs]) - 1

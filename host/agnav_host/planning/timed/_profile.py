@@ -192,7 +192,9 @@ def solve_leg(d: float, tau: float, v_s: float, v_e: float, lim: SpeedLimits, al
             if max(v_s, v_e) - 1e-9 <= v <= vp + 1e-9 and v >= v_lo - 1e-9 and abs(leg_time_s(d, v_s, v_e, v, a) - tau) < 1e-6:
                 return _profile_from(_phases_for(d, v_s, v_e, v, a))
         lo, hi = v_lo, vp  # t(lo) >= tau >= t(hi)
-        for _ in range(50):
+        for _ in range(50):  # to 1e-9 m/s: about 31 halvings of a 2 m/s bracket
+            if hi - lo < 1e-9:
+                break
             mid = 0.5 * (lo + hi)
             if leg_time_s(d, v_s, v_e, mid, a) > tau:
                 lo = mid

@@ -18,9 +18,15 @@ Each control step:
    is no longer feasible the new earliest arrival goes into ``status``.
 5. **track** the plan with the 003 arc law (:mod:`._tracking`).
 
-Every replan is bounded by ``replan_budget_s`` (:class:`~agnav_host.planning.base.DeadlineMissed`
-inside; the planner then keeps its current plan and doubles the budget of its next try, up to 16x)
-and its wall time is kept in ``replan_times_s``.
+Every replanning call builds and checks at most ``max_candidates`` plans: a longer conflict search
+keeps the current plan, reports "searching" and goes on at the next control step (:mod:`._resolve`).
+``replan_budget_s`` is a wall-time backstop only (:class:`~agnav_host.planning.base.DeadlineMissed`
+inside; the planner then keeps its current plan and doubles the budget of its next try, up to 16x).
+Each call's wall and CPU time and its work go to ``replan_times_s``, ``replan_cpu_s`` and
+``replan_work``.
+
+Speed commands are never below ``command_min_m_s``: the firmware maps a setpoint under its speed
+table's first point to neutral, which stopped the car in the middle of its final creep.
 """
 
 from __future__ import annotations
@@ -60,7 +66,8 @@ class TimedParams:
     horizon_s: float = 6.0  # space-time look-ahead
     delay_replan_m: float = 0.25  # schedule error that triggers a catch-up replan
     min_replan_interval_s: float = 0.4
-    replan_budget_s: float = 0.002
+    replan_budget_s: float = 0.050  # wall-time backstop of one replanning call, for pathological cases only (the work bound is max_candidates)
+    max_candidates: int = 2  # plans built and checked per replanning call; a longer search goes on at the next steps
     use_sonar: bool = True
     lookahead_s: float = 0.7
     lookahead_min_m: float = 0.35
@@ -68,6 +75,10 @@ class TimedParams:
     k_s: float = 0.8
     stop_lag_s: float = 0.25
     speed_ratio_gain: float = 0.05  # per step, learning rate of the measured/commanded speed ratio
+    # smallest nonzero speed command. The firmware maps a setpoint below its speed table's first point
+    # to neutral (stop): that point is 43.5 cm/s rounded to a whole PWM count, 446 mm/s in the default
+    # table, so commands never go below 0.45 m/s (slower plans are driven through the speed ratio)
+    command_min_m_s: float = 0.45
 
     def __post_init__(self) -> None:
         if not 0 < self.plan_steer_deg <= self.max_steer_deg < 90:
@@ -105,10 +116,13 @@ class TimedPlanner:
         self._last_steer = 0.0
         self._last_replan_t = -math.inf
         self._budget_scale = 1.0
+        self._search: tuple[str, int, Any] | None = None  # (trigger, next candidate, best late candidate) of a search in progress
+        self.replan_work: list[tuple[int, int]] = []  # per replanning call: (candidates built and checked, candidates screened out)
         self._last_v_cmd = 0.0
         self._prev_speed = 0.0
         self.speed_ratio = 1.0  # measured / commanded speed, learnt while cruising (slip, worn motor, table error)
-        self.replan_times_s: list[float] = []
+        self.replan_times_s: list[float] = []  # wall time of each replanning call
+        self.replan_cpu_s: list[float] = []  # CPU time of the planner's thread in it (what a shared, loaded machine does not inflate)
         self.events: list[tuple[float, str]] = []
         self.status: dict[str, Any] = {"feasible": None, "reason": "no plan yet", "earliest_arrival_s": None,
                                        "arrival_s": None, "replans": 0, "last_action": None, "deadline_misses": 0}
@@ -245,7 +259,8 @@ class TimedPlanner:
         # progress is needed by the checks: a cheap projection first
         self.ts.s_m, _ = self.plan.path.project(obs.pose.x_m, obs.pose.y_m, self.ts.s_m,
                                                 window_m=max(1.0, 3.0 * abs(obs.speed_m_s) + 0.5))
-        if not self.ts.stopping and t - self._last_replan_t >= p.min_replan_interval_s and self.plan.path.length_m - self.ts.s_m > 0.6:
+        due = self._search is not None or t - self._last_replan_t >= p.min_replan_interval_s
+        if not self.ts.stopping and due and self.plan.path.length_m - self.ts.s_m > 0.6:
             self._maybe_replan(obs, target, pts, movers)
         v, steer = track(self.plan, obs.pose, obs.speed_m_s, t, self.ts, self.track_params)
         # learn how fast the car really goes for a command, and command through that ratio
@@ -254,7 +269,7 @@ class TimedPlanner:
             self.speed_ratio = min(1.4, max(0.6, self.speed_ratio + p.speed_ratio_gain * (ratio - self.speed_ratio)))
         self._prev_speed = obs.speed_m_s
         if v > 0.0 and not self.ts.stopping:
-            v = min(max(v / self.speed_ratio, self.limits.v_min_m_s), self.limits.v_max_m_s)
+            v = min(max(v / self.speed_ratio, self.limits.v_min_m_s, p.command_min_m_s), self.limits.v_max_m_s)
         # last line of defence: a return inside the footprint's way within the braking distance
         if len(pts) and v > 0:
             blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
@@ -270,9 +285,13 @@ class TimedPlanner:
         t = obs.t_s
         why = None
         extra: list[tuple[str, tuple[float, float]]] = []
+        t0 = time.perf_counter()
+        c0 = time.thread_time()
         blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + p.detect_range_m, p.static_trigger_m) if len(pts) else None
         if blk is not None:
             why = "static"
+            t0 = time.perf_counter()  # the deviation points are part of the replanning work
+            c0 = time.thread_time()
             extra = self._deviation_points(obs, pts, blk[1])
         elif movers and first_conflict(self.plan, movers, t, t + p.horizon_s, p.moving_margin_m) is not None:
             why = "moving"
@@ -281,13 +300,20 @@ class TimedPlanner:
             if float(s_ref) - self.ts.s_m > p.delay_replan_m:
                 why = "delay"
         if why is None:
+            self._search = None
             return
-        t0 = time.perf_counter()
+        if why != "static":
+            t0 = time.perf_counter()
+            c0 = time.thread_time()
+        search = self._search if self._search is not None and self._search[0] == why else None
+        self._search = None
         budget = p.replan_budget_s * self._budget_scale
         start = self._state_now(obs)
         goal = self.plan.goal
         arrival = target.arrival_s
         vias = self._remaining_vias()
+        searching = False
+        work = (1, 0)
         try:
             if why == "delay":
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
@@ -296,19 +322,28 @@ class TimedPlanner:
                 res = resolve(start, goal, t, arrival, self.limits, vias, movers, pts, horizon_s=p.horizon_s,
                               margin_m=p.moving_margin_m, static_clear_m=p.static_clear_m, static_range_m=p.detect_range_m + 2.0,
                               deadline=t0 + budget, extra_vias_xy=extra, try_yield=why == "moving",
-                              try_base=why != "static")
+                              try_base=why != "static", max_candidates=p.max_candidates,
+                              start_index=0 if search is None else search[1], late=None if search is None else search[2])
                 new, action = res.plan, f"{why}: {res.action}"
+                work = (res.tried, res.screened)
+                if res.next_index is not None:  # not finished: go on from there at the next step
+                    self._search = (why, res.next_index, res.late)
+                    searching = True
         except DeadlineMissed:
             new, action = None, f"{why}: budget of {budget * 1e3:.1f} ms exhausted"
             self.status["deadline_misses"] += 1
             self._budget_scale = min(self._budget_scale * 2.0, 16.0)  # give the next try more room
         if new is None and why == "moving":
-            c = first_conflict(self.plan, movers, t, t + 2.0, 0.0)
-            if c is not None:  # nothing clear and contact within 2 s: stop and wait, try again next time
+            # nothing clear (yet) and contact within 2 s (1 s while the search goes on): stop and wait
+            c = first_conflict(self.plan, movers, t, t + (1.0 if searching else 2.0), 0.0)
+            if c is not None:
+                self._search = None
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, dwell_first_s=1.0, auto_via=False)
                 action += "; stop and wait"
         dt = time.perf_counter() - t0
         self.replan_times_s.append(dt)
+        self.replan_cpu_s.append(time.thread_time() - c0)
+        self.replan_work.append(work)
         self._last_replan_t = t
         self.events.append((t, action))
         if new is not None:

@@ -1,0 +1,68 @@
+/*
+ * MAVLink 2 message signing: the secret key and the signing timestamp, kept in
+ * EEPROM, and the hooks that make the MAVLink library check every received frame
+ * and sign every sent one while a key is set.
+ *
+ * Key record at SIGNING_KEY_ADDR (separate from parameters and calibration):
+ *   0 magic u16 = SIGNING_MAGIC, 2 key[32], 34 crc16 (CRC-16/CCITT-FALSE of bytes 0..33)
+ * All 0xFF (erased) or an all-zero key means "no key": signing off, every frame
+ * accepted. A record that is neither erased nor valid (bad magic or CRC, e.g. power
+ * lost while it was written) FAILS CLOSED: signing stays on with that unusable key,
+ * so nothing is accepted until a key is provisioned again (see link.h for how).
+ *
+ * Timestamp (MAVLink units: 10 us since 2015-01-01). The firmware has no clock of the
+ * calendar; it starts from the newest stored value plus SIGNING_TS_SAVE_INTERVAL (the
+ * most that may have passed unsaved), advances with hal time and jumps forward to any
+ * newer timestamp of an accepted frame (done by the MAVLink library). It is stored when
+ * it has moved SIGNING_TS_SAVE_INTERVAL past the last stored value, into a ring of
+ * SIGNING_TS_SLOTS slots {timestamp u48, crc16} so each EEPROM cell sees 1/8 of the
+ * writes (30 s interval: one write per cell every 4 min of signed operation, 100 000
+ * cycles last ~9 months of continuous running). After a reboot, frames recorded more
+ * than 60 s (MAVLINK_SIGNING_TIMESTAMP_LIMIT) before that start value are refused
+ * as replays; see docs/safety.md for the window that remains.
+ *
+ * EEPROM writes never block the loop: records are written one byte per
+ * signing_tick() call, at most one byte per SIGNING_WRITE_GAP_MS (an AVR EEPROM byte
+ * takes 3.4 ms; avr-libc only waits for the previous byte).
+ */
+#ifndef AGNAV_SIGNING_H
+#define AGNAV_SIGNING_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include <agnav_mavlink.h>
+
+#define SIGNING_KEY_ADDR 0x0040u
+#define SIGNING_KEY_RECORD_BYTES 36u
+#define SIGNING_TS_ADDR 0x0070u
+#define SIGNING_TS_SLOTS 8u
+#define SIGNING_TS_SLOT_BYTES 8u
+#define SIGNING_MAGIC 0x5349u                     /* "IS" */
+#define SIGNING_TS_SAVE_INTERVAL 3000000ULL       /* 30 s in 10 us units */
+#define SIGNING_WRITE_GAP_MS 5u
+
+typedef enum {
+    SIGNING_OFF = 0,         /* no key: unsigned and signed frames accepted, nothing signed */
+    SIGNING_ON = 1,          /* key set: only correctly signed, fresh frames accepted */
+    SIGNING_KEY_CORRUPT = 2  /* stored record damaged: fail closed (nothing accepted) */
+} signing_state_t;
+
+/* Load key and timestamp from EEPROM and attach the signing state to the receive
+ * status (frames checked) and the send status (frames signed). */
+void signing_init(mavlink_status_t *rx, mavlink_status_t *tx, uint32_t now_ms);
+uint8_t signing_state(void); /* signing_state_t */
+/* Set (all-zero key: clear) the key, raise the timestamp to at least initial_timestamp,
+ * and start writing the record to EEPROM in the background. */
+void signing_set_key(const uint8_t key[32], uint64_t initial_timestamp);
+/* Advance the timestamp to now_ms and write at most one pending EEPROM byte. */
+void signing_tick(uint32_t now_ms);
+uint64_t signing_timestamp(void);
+bool signing_write_pending(void);
+/* Frames without a signature that pass the parser even while signing is on: RADIO_STATUS
+ * (radios inject it and cannot sign; the firmware does not act on it) and, only while the
+ * provisioning window is open, SETUP_SIGNING (link.c decides whether to apply it). */
+bool signing_accept_unsigned(uint32_t msgid);
+void signing_set_provisioning(bool open);
+
+#endif

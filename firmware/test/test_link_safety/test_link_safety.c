@@ -1,0 +1,293 @@
+/* Bad commands: every class of bad input is refused (or clamped), answered and counted. */
+#include <math.h>
+#include <string.h>
+#include <unity.h>
+
+#include "hal.h"
+#include "link.h"
+#include "params.h"
+#include "sim/hal_sim.h"
+
+#define HOST_SYS 255u
+#define HOST_COMP 190u
+#define US 1u /* our system id */
+
+static uint16_t s_timeout_ms;
+static const PARAMS_ROM param_def_t TABLE[] = {
+    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+};
+
+static mavlink_message_t s_msg;
+
+static void send_to_robot(const mavlink_message_t *msg)
+{
+    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+    uint16_t len = mavlink_msg_to_send_buffer(buf, msg);
+    TEST_ASSERT_EQUAL_UINT16(len, sim_uart_put_rx(HAL_UART_LINK, buf, len));
+    link_poll(100u);
+}
+
+/* Frames of msgid the robot sent (drained), last one in s_msg. */
+static uint8_t robot_sent(uint32_t msgid)
+{
+    static mavlink_message_t rx;
+    static mavlink_status_t st;
+    uint8_t b;
+    uint8_t n = 0;
+    memset(&st, 0, sizeof st);
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK && rx.msgid == msgid) {
+            s_msg = rx;
+            n++;
+        }
+    }
+    return n;
+}
+
+void setUp(void)
+{
+    sim_reset();
+    s_timeout_ms = 500u;
+    params_init(TABLE, 1u);
+    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, 0u};
+    link_init(&cfg);
+}
+
+void tearDown(void) {}
+
+static void command(uint8_t target, uint16_t cmd, float p1, float p2, float p3)
+{
+    mavlink_msg_command_long_pack(HOST_SYS, HOST_COMP, &s_msg, target, 1, cmd, 0, p1, p2, p3, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+}
+
+/* The single COMMAND_ACK the robot sent: result and result_param2 (reason). */
+static void expect_ack(uint16_t cmd, uint8_t result, int32_t reason)
+{
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(1u, robot_sent(MAVLINK_MSG_ID_COMMAND_ACK), "one COMMAND_ACK");
+    TEST_ASSERT_EQUAL_UINT16(cmd, mavlink_msg_command_ack_get_command(&s_msg));
+    TEST_ASSERT_EQUAL_UINT8(result, mavlink_msg_command_ack_get_result(&s_msg));
+    TEST_ASSERT_EQUAL_INT32(reason, mavlink_msg_command_ack_get_result_param2(&s_msg));
+    TEST_ASSERT_EQUAL_UINT8(HOST_SYS, mavlink_msg_command_ack_get_target_system(&s_msg));
+}
+
+static void test_link_command_with_nan_is_denied_not_finite(void)
+{
+    command(US, MAV_CMD_AGNAV_ESTOP, NAN, 0, 0);
+    expect_ack(MAV_CMD_AGNAV_ESTOP, MAV_RESULT_DENIED, LINK_REFUSAL_NOT_FINITE);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_command_with_infinity_is_denied_not_finite(void)
+{
+    command(US, MAV_CMD_AGNAV_SET_BEHAVIOURS, 1.0f, INFINITY, 0.0f);
+    expect_ack(MAV_CMD_AGNAV_SET_BEHAVIOURS, MAV_RESULT_DENIED, LINK_REFUSAL_NOT_FINITE);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(LINK_ENABLE_AVOID, link_state()->behaviour_enable, "modes unchanged");
+}
+
+static void test_link_command_flag_other_than_0_or_1_is_denied_out_of_range(void)
+{
+    command(US, MAV_CMD_COMPONENT_ARM_DISARM, 0.7f, 0, 0);
+    expect_ack(MAV_CMD_COMPONENT_ARM_DISARM, MAV_RESULT_DENIED, LINK_REFUSAL_OUT_OF_RANGE);
+    TEST_ASSERT_FALSE(link_state()->arm_request);
+}
+
+static void test_link_unknown_command_is_unsupported_with_reason_and_counted(void)
+{
+    command(US, MAV_CMD_NAV_TAKEOFF, 0, 0, 0);
+    expect_ack(MAV_CMD_NAV_TAKEOFF, MAV_RESULT_UNSUPPORTED, LINK_REFUSAL_UNSUPPORTED);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_broadcast_estop_is_accepted(void)
+{
+    command(0u, MAV_CMD_AGNAV_ESTOP, 1.0f, 0, 0);
+    expect_ack(MAV_CMD_AGNAV_ESTOP, MAV_RESULT_ACCEPTED, 0);
+    TEST_ASSERT_TRUE(link_state()->estop);
+}
+
+static void test_link_broadcast_arm_is_denied(void)
+{
+    command(0u, MAV_CMD_COMPONENT_ARM_DISARM, 1.0f, 0, 0);
+    expect_ack(MAV_CMD_COMPONENT_ARM_DISARM, MAV_RESULT_DENIED, LINK_REFUSAL_BROADCAST);
+    TEST_ASSERT_FALSE(link_state()->arm_request);
+}
+
+static void test_link_command_for_another_system_is_ignored_and_counted(void)
+{
+    command(7u, MAV_CMD_AGNAV_ESTOP, 1.0f, 0, 0);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(0u, robot_sent(MAVLINK_MSG_ID_COMMAND_ACK), "not ours: no answer");
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_other_target);
+    TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_refused);
+}
+
+static void test_link_command_for_another_component_is_ignored(void)
+{
+    mavlink_msg_command_long_pack(HOST_SYS, HOST_COMP, &s_msg, US, 42, MAV_CMD_AGNAV_ESTOP, 0, 1, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_other_target);
+}
+
+static void setpoint(uint8_t target, int16_t steer, int16_t speed, uint8_t mode, uint16_t spwm)
+{
+    mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, target, 1, steer, speed, 0, spwm, mode, 1);
+    send_to_robot(&s_msg);
+}
+
+static void test_link_setpoint_out_of_range_is_refused_and_stops(void)
+{
+    setpoint(US, 100, 500, AGNAV_DRIVE_PHYSICAL, 0);
+    TEST_ASSERT_TRUE(link_state()->setpoint.valid);
+    setpoint(US, 100, 20000, AGNAV_DRIVE_PHYSICAL, 0);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->setpoint.valid, "a garbage setpoint drops the old one too");
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+    TEST_ASSERT_EQUAL_UINT8(1u, robot_sent(MAVLINK_MSG_ID_STATUSTEXT));
+}
+
+static void test_link_setpoint_steer_beyond_half_turn_is_refused(void)
+{
+    setpoint(US, -18001, 100, AGNAV_DRIVE_PHYSICAL, 0);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+}
+
+static void test_link_setpoint_unknown_mode_or_raw_pwm_range_is_refused(void)
+{
+    setpoint(US, 0, 100, 7u, 0);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    setpoint(US, 0, 100, AGNAV_DRIVE_RAW_PWM, 3001u);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    TEST_ASSERT_EQUAL_UINT16(2u, link_state()->rx_refused);
+    setpoint(US, 0, 100, AGNAV_DRIVE_RAW_PWM, 200u);
+    TEST_ASSERT_TRUE(link_state()->setpoint.valid);
+}
+
+static void test_link_broadcast_setpoint_is_refused(void)
+{
+    setpoint(0u, 0, 300, AGNAV_DRIVE_PHYSICAL, 0);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_refusal_texts_are_rate_limited_but_all_counted(void)
+{
+    for (uint8_t k = 0; k < 5u; k++) {
+        setpoint(US, 0, 30000, AGNAV_DRIVE_PHYSICAL, 0);
+    }
+    TEST_ASSERT_EQUAL_UINT16(5u, link_state()->rx_refused);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(1u, robot_sent(MAVLINK_MSG_ID_STATUSTEXT), "one text per second");
+}
+
+static void test_link_truncated_setpoint_reads_as_broadcast_and_is_refused(void)
+{
+    /* A wrong (short) length: MAVLink 2 zero-fills the missing tail, so the target fields
+     * at the end of the wire payload read 0 -> an unaddressed motion command. */
+    mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 100, 400, 0, 0, 0, 1);
+    mavlink_finalize_message(&s_msg, HOST_SYS, HOST_COMP, 1u, 4u, MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT_CRC);
+    TEST_ASSERT_EQUAL_UINT8(4u, s_msg.len);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_rc_pulse_outside_800_2200_is_refused(void)
+{
+    mavlink_msg_rc_channels_override_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 1600, 0, 2500, 0, 0, 0, 0, 0, 0, 0, 0,
+                                          0, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->manual.valid);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_rc_pulse_2100_is_clamped_to_full(void)
+{
+    mavlink_msg_rc_channels_override_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 1500, 0, 2100, 0, 0, 0, 0, 0, 0, 0, 0,
+                                          0, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_TRUE(link_state()->manual.valid);
+    TEST_ASSERT_EQUAL_INT16(2000, link_state()->manual.speed_mm_s);
+}
+
+static void test_link_manual_control_axis_out_of_range_is_refused(void)
+{
+    mavlink_msg_manual_control_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1500, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                                    0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->manual.valid);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_link_manual_control_broadcast_is_refused(void)
+{
+    mavlink_msg_manual_control_pack(HOST_SYS, HOST_COMP, &s_msg, 0u, 500, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                                    0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->manual.valid);
+}
+
+static void goal(uint8_t frame, uint16_t mask, float x, float y)
+{
+    mavlink_msg_set_position_target_local_ned_pack(HOST_SYS, HOST_COMP, &s_msg, 0, US, 1, frame, mask, x, y, 0, 0, 0,
+                                                   0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+}
+
+static void test_link_goal_nan_far_wrong_frame_or_ignored_xy_is_refused(void)
+{
+    goal(MAV_FRAME_LOCAL_NED, 0u, 2.0f, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->goal.active);
+    goal(MAV_FRAME_LOCAL_NED, 0u, NAN, 1.0f);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->goal.active, "a refused goal drops the old one");
+    goal(MAV_FRAME_LOCAL_NED, 0u, 2.0f, 20000.0f);
+    goal(MAV_FRAME_BODY_NED, 0u, 2.0f, 1.0f);
+    goal(MAV_FRAME_LOCAL_NED, 0x1u, 2.0f, 1.0f);
+    TEST_ASSERT_FALSE(link_state()->goal.active);
+    TEST_ASSERT_EQUAL_UINT16(4u, link_state()->rx_refused);
+}
+
+static void test_link_param_set_nan_or_huge_is_refused(void)
+{
+    mavlink_msg_param_set_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, "LINK_TIMEOUT_MS", NAN, MAV_PARAM_TYPE_INT32);
+    send_to_robot(&s_msg);
+    mavlink_msg_param_set_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, "LINK_TIMEOUT_MS", 3e9f, MAV_PARAM_TYPE_INT32);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
+    TEST_ASSERT_EQUAL_UINT16(2u, link_state()->rx_refused);
+}
+
+static void test_link_param_set_broadcast_is_refused(void)
+{
+    mavlink_msg_param_set_pack(HOST_SYS, HOST_COMP, &s_msg, 0u, 0u, "LINK_TIMEOUT_MS", 700.0f, MAV_PARAM_TYPE_INT32);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_link_command_with_nan_is_denied_not_finite);
+    RUN_TEST(test_link_command_with_infinity_is_denied_not_finite);
+    RUN_TEST(test_link_command_flag_other_than_0_or_1_is_denied_out_of_range);
+    RUN_TEST(test_link_unknown_command_is_unsupported_with_reason_and_counted);
+    RUN_TEST(test_link_broadcast_estop_is_accepted);
+    RUN_TEST(test_link_broadcast_arm_is_denied);
+    RUN_TEST(test_link_command_for_another_system_is_ignored_and_counted);
+    RUN_TEST(test_link_command_for_another_component_is_ignored);
+    RUN_TEST(test_link_setpoint_out_of_range_is_refused_and_stops);
+    RUN_TEST(test_link_setpoint_steer_beyond_half_turn_is_refused);
+    RUN_TEST(test_link_setpoint_unknown_mode_or_raw_pwm_range_is_refused);
+    RUN_TEST(test_link_broadcast_setpoint_is_refused);
+    RUN_TEST(test_link_refusal_texts_are_rate_limited_but_all_counted);
+    RUN_TEST(test_link_truncated_setpoint_reads_as_broadcast_and_is_refused);
+    RUN_TEST(test_link_rc_pulse_outside_800_2200_is_refused);
+    RUN_TEST(test_link_rc_pulse_2100_is_clamped_to_full);
+    RUN_TEST(test_link_manual_control_axis_out_of_range_is_refused);
+    RUN_TEST(test_link_manual_control_broadcast_is_refused);
+    RUN_TEST(test_link_goal_nan_far_wrong_frame_or_ignored_xy_is_refused);
+    RUN_TEST(test_link_param_set_nan_or_huge_is_refused);
+    RUN_TEST(test_link_param_set_broadcast_is_refused);
+    return UNITY_END();
+}

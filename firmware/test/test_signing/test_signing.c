@@ -1,0 +1,297 @@
+/* MAVLink 2 signing: key provisioning, rejection and counting of unsigned / wrongly signed /
+ * replayed frames, key and timestamp persistence in EEPROM. */
+#include <string.h>
+#include <unity.h>
+
+#include "hal.h"
+#include "link.h"
+#include "params.h"
+#include "signing.h"
+#include "sim/hal_sim.h"
+
+#define HOST_SYS 255u
+#define HOST_COMP 190u
+#define US 1u
+#define WINDOW_MS 10000u
+
+static uint16_t s_timeout_ms;
+static const PARAMS_ROM param_def_t TABLE[] = {
+    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+};
+
+static const uint8_t KEY[32] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16,
+                                17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32};
+static const uint8_t OTHER_KEY[32] = {0xA5};
+static const uint8_t ZERO_KEY[32] = {0};
+#define T0 500000000000ULL /* host timestamp, 10 us units (~2016) */
+
+static mavlink_message_t s_msg;
+static mavlink_signing_t s_host; /* the host's signing state */
+static uint32_t s_now_ms;
+
+/* Pack on the host side: sign with key (NULL = unsigned) at host timestamp ts. The robot's
+ * firmware shares channel 0's status in this test program, so swap the signing state in. */
+static void host_finalize(mavlink_message_t *msg, const uint8_t *key, uint64_t ts, uint8_t min_len, uint8_t len,
+                          uint8_t crc_extra)
+{
+    mavlink_status_t *st = mavlink_get_channel_status(MAVLINK_COMM_0);
+    struct __mavlink_signing *saved = st->signing;
+    if (key != NULL) {
+        memset(&s_host, 0, sizeof s_host);
+        s_host.flags = MAVLINK_SIGNING_FLAG_SIGN_OUTGOING;
+        s_host.link_id = 1u;
+        s_host.timestamp = ts;
+        memcpy(s_host.secret_key, key, 32u);
+        st->signing = &s_host;
+    } else {
+        st->signing = NULL;
+    }
+    mavlink_finalize_message(msg, HOST_SYS, HOST_COMP, min_len, len, crc_extra);
+    st->signing = saved;
+}
+
+static uint16_t wire(const mavlink_message_t *msg, uint8_t *buf) { return mavlink_msg_to_send_buffer(buf, msg); }
+
+static void feed(const uint8_t *buf, uint16_t len)
+{
+    TEST_ASSERT_EQUAL_UINT16(len, sim_uart_put_rx(HAL_UART_LINK, buf, len));
+    link_poll(s_now_ms);
+}
+
+static void estop(const uint8_t *key, uint64_t ts, float engage)
+{
+    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+    mavlink_command_long_t c;
+    memset(&c, 0, sizeof c);
+    c.target_system = US;
+    c.target_component = 1u;
+    c.command = MAV_CMD_AGNAV_ESTOP;
+    c.param1 = engage;
+    memcpy(_MAV_PAYLOAD_NON_CONST(&s_msg), &c, MAVLINK_MSG_ID_COMMAND_LONG_LEN);
+    s_msg.msgid = MAVLINK_MSG_ID_COMMAND_LONG;
+    host_finalize(&s_msg, key, ts, MAVLINK_MSG_ID_COMMAND_LONG_MIN_LEN, MAVLINK_MSG_ID_COMMAND_LONG_LEN,
+                  MAVLINK_MSG_ID_COMMAND_LONG_CRC);
+    feed(buf, wire(&s_msg, buf));
+}
+
+static void setup_signing(const uint8_t *sign_with, const uint8_t *new_key, uint64_t ts)
+{
+    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+    mavlink_setup_signing_t ss;
+    memset(&ss, 0, sizeof ss);
+    ss.target_system = US;
+    ss.target_component = 1u;
+    memcpy(ss.secret_key, new_key, 32u);
+    ss.initial_timestamp = ts;
+    memcpy(_MAV_PAYLOAD_NON_CONST(&s_msg), &ss, MAVLINK_MSG_ID_SETUP_SIGNING_LEN);
+    s_msg.msgid = MAVLINK_MSG_ID_SETUP_SIGNING;
+    host_finalize(&s_msg, sign_with, ts, MAVLINK_MSG_ID_SETUP_SIGNING_MIN_LEN, MAVLINK_MSG_ID_SETUP_SIGNING_LEN,
+                  MAVLINK_MSG_ID_SETUP_SIGNING_CRC);
+    feed(buf, wire(&s_msg, buf));
+}
+
+static void boot(uint16_t window_ms)
+{
+    s_timeout_ms = 500u;
+    params_init(TABLE, 1u);
+    sim_time_set_us(s_now_ms * 1000u);
+    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, window_ms};
+    link_init(&cfg);
+}
+
+/* Run the link task every 2 ms for ms milliseconds (EEPROM writes happen in the background). */
+static void run_ms(uint32_t ms)
+{
+    for (uint32_t t = 0; t < ms; t += 2u) {
+        s_now_ms += 2u;
+        sim_time_set_us(s_now_ms * 1000u);
+        link_poll(s_now_ms);
+    }
+}
+
+void setUp(void)
+{
+    sim_reset();
+    s_now_ms = 0u;
+    boot(WINDOW_MS);
+}
+
+void tearDown(void) {}
+
+static void test_signing_off_without_key_accepts_unsigned(void)
+{
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_OFF, signing_state());
+    estop(NULL, 0u, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->estop);
+}
+
+static void test_signing_unsigned_key_in_provisioning_window_is_set(void)
+{
+    setup_signing(NULL, KEY, T0);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
+    TEST_ASSERT_TRUE(signing_timestamp() >= T0);
+}
+
+static void test_signing_unsigned_key_after_window_is_refused(void)
+{
+    run_ms(WINDOW_MS + 10u);
+    setup_signing(NULL, KEY, T0);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_OFF, signing_state());
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+}
+
+static void test_signing_no_window_after_watchdog_boot(void)
+{
+    boot(0u); /* main passes 0 after a watchdog or brown-out reset */
+    setup_signing(NULL, KEY, T0);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_OFF, signing_state());
+}
+
+static void test_signing_with_key_rejects_and_counts_unsigned(void)
+{
+    setup_signing(NULL, KEY, T0);
+    estop(NULL, 0u, 1.0f);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_unsigned);
+}
+
+static void test_signing_with_key_accepts_correctly_signed(void)
+{
+    setup_signing(NULL, KEY, T0);
+    estop(KEY, T0 + 100u, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->estop);
+}
+
+static void test_signing_with_key_rejects_and_counts_wrong_key(void)
+{
+    setup_signing(NULL, KEY, T0);
+    estop(OTHER_KEY, T0 + 100u, 1.0f);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_bad_signature);
+}
+
+static void test_signing_replayed_frame_is_rejected_and_counted(void)
+{
+    setup_signing(NULL, KEY, T0);
+    estop(KEY, T0 + 100u, 1.0f);
+    uint8_t rec[MAVLINK_MAX_PACKET_LEN];
+    uint16_t n = wire(&s_msg, rec); /* an eavesdropper records the engage frame */
+    estop(KEY, T0 + 200u, 0.0f);    /* the host releases */
+    TEST_ASSERT_FALSE(link_state()->estop);
+    feed(rec, n);                   /* and plays the old frame back */
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "replay not acted on");
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_replay);
+}
+
+static void test_signing_frame_older_than_a_minute_from_a_new_stream_is_rejected(void)
+{
+    setup_signing(NULL, KEY, T0 + 10000000ULL); /* robot timestamp T0 + 100 s */
+    estop(KEY, T0, 1.0f);                       /* first frame of the host's stream, 100 s old */
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_replay);
+}
+
+static void test_signing_key_change_signed_with_current_key_is_accepted_after_window(void)
+{
+    setup_signing(NULL, KEY, T0);
+    run_ms(WINDOW_MS + 10u);
+    setup_signing(OTHER_KEY, ZERO_KEY, T0 + 2000000ULL); /* wrong key: dropped by the parser */
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_bad_signature);
+    setup_signing(KEY, OTHER_KEY, T0 + 2000100ULL);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
+    estop(OTHER_KEY, T0 + 2000200ULL, 1.0f);
+    TEST_ASSERT_TRUE_MESSAGE(link_state()->estop, "the new key is in use");
+}
+
+static void test_signing_zero_key_signed_clears_signing(void)
+{
+    setup_signing(NULL, KEY, T0);
+    setup_signing(KEY, ZERO_KEY, T0 + 100u);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_OFF, signing_state());
+    estop(NULL, 0u, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->estop);
+}
+
+static void test_signing_key_survives_reboot_via_eeprom(void)
+{
+    setup_signing(NULL, KEY, T0);
+    TEST_ASSERT_TRUE(signing_write_pending());
+    run_ms(SIGNING_KEY_RECORD_BYTES * (SIGNING_WRITE_GAP_MS + 2u) + 20u); /* a byte per 6 ms at a 2 ms task */
+    TEST_ASSERT_FALSE_MESSAGE(signing_write_pending(), "the record is written in the background");
+    boot(0u);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
+    estop(NULL, 0u, 1.0f);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    estop(KEY, T0 + 1000u, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->estop);
+}
+
+static void test_signing_corrupt_key_record_fails_closed(void)
+{
+    setup_signing(NULL, KEY, T0);
+    run_ms(SIGNING_KEY_RECORD_BYTES * (SIGNING_WRITE_GAP_MS + 2u) + 20u); /* a byte per 6 ms at a 2 ms task */
+    boot(0u);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(SIGNING_ON, signing_state(), "intact before the bit flip");
+    sim_eeprom_bytes()[SIGNING_KEY_ADDR + 10u] ^= 0x04u;
+    boot(0u);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_KEY_CORRUPT, signing_state());
+    estop(NULL, 0u, 1.0f);
+    estop(KEY, T0 + 1000u, 1.0f);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "nothing is accepted with a damaged key");
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_unsigned);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_bad_signature);
+}
+
+static void test_signing_timestamp_is_stored_and_restored_ahead_after_reboot(void)
+{
+    setup_signing(NULL, KEY, T0);
+    run_ms(31000u); /* past one save interval, and the slot write */
+    boot(0u);
+    TEST_ASSERT_TRUE_MESSAGE(signing_timestamp() >= T0 + 2 * SIGNING_TS_SAVE_INTERVAL,
+                             "restored value = stored (>= T0 + 30 s) + one interval");
+    /* A frame recorded at T0 (before the reboot) is refused: more than 60 s behind. */
+    estop(KEY, T0, 1.0f);
+    TEST_ASSERT_FALSE(link_state()->estop);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_replay);
+}
+
+static void test_signing_robot_signs_its_telemetry(void)
+{
+    setup_signing(NULL, KEY, T0);
+    uint8_t b;
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+    }
+    link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
+    static mavlink_message_t rx;
+    static mavlink_status_t st;
+    memset(&st, 0, sizeof st);
+    bool signed_frame = false;
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
+            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
+        }
+    }
+    TEST_ASSERT_TRUE(signed_frame);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_signing_off_without_key_accepts_unsigned);
+    RUN_TEST(test_signing_unsigned_key_in_provisioning_window_is_set);
+    RUN_TEST(test_signing_unsigned_key_after_window_is_refused);
+    RUN_TEST(test_signing_no_window_after_watchdog_boot);
+    RUN_TEST(test_signing_with_key_rejects_and_counts_unsigned);
+    RUN_TEST(test_signing_with_key_accepts_correctly_signed);
+    RUN_TEST(test_signing_with_key_rejects_and_counts_wrong_key);
+    RUN_TEST(test_signing_replayed_frame_is_rejected_and_counted);
+    RUN_TEST(test_signing_frame_older_than_a_minute_from_a_new_stream_is_rejected);
+    RUN_TEST(test_signing_key_change_signed_with_current_key_is_accepted_after_window);
+    RUN_TEST(test_signing_zero_key_signed_clears_signing);
+    RUN_TEST(test_signing_key_survives_reboot_via_eeprom);
+    RUN_TEST(test_signing_corrupt_key_record_fails_closed);
+    RUN_TEST(test_signing_timestamp_is_stored_and_restored_ahead_after_reboot);
+    RUN_TEST(test_signing_robot_signs_its_telemetry);
+    return UNITY_END();
+}

@@ -1,0 +1,253 @@
+"""Fault injection in the native SIL (hil/sil/sil_api.h "FAULT INJECTION"): each injected fault is
+detected, reported and ends in a stop; docs/safety.md describes each one."""
+
+from __future__ import annotations
+
+import pytest
+
+from _sil_logic import decode
+
+from agnav_host.protocol import dialect
+from agnav_host.sil import Firmware, build_library
+
+D = dialect()
+HOST = (255, 190)
+NO_SONAR = {"SONAR_COUNT": 0}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def lib():
+    return build_library()
+
+
+class Host:
+    """A host that sends a heartbeat and a drive setpoint every 50 ms and answers every sonar
+    trigger with a 2 m echo (so a healthy robot drives)."""
+
+    def __init__(self, fw: Firmware, speed_mm_s: int = 600) -> None:
+        self.fw = fw
+        self.mav = D.MAVLink(None, srcSystem=HOST[0], srcComponent=HOST[1])
+        self.speed = speed_mm_s
+        self.seq = 0
+        self.msgs: list = []
+        self.wheel_edges = True  # the wheel turns: without counts the health monitor stops the robot
+        self.echo_us = {i: 11_662 for i in range(12)}  # 2000 mm everywhere
+
+    def send(self, msg) -> None:
+        self.fw.uart_write(msg.pack(self.mav))
+
+    def command(self, cmd: int, *p: float) -> None:
+        q = list(p) + [0.0] * (7 - len(p))
+        self.send(D.MAVLink_command_long_message(1, 1, cmd, 0, *q))
+
+    def run(self, us: int) -> list:
+        end = self.fw.time_us + us
+        out = []
+        while self.fw.time_us < end:
+            t = min(end, self.fw.time_us + 50_000)
+            self.seq += 1
+            self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+            self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, 0, self.speed, 0, 0, D.AGNAV_DRIVE_PHYSICAL,
+                                                             self.seq & 0xFFFF))
+            if self.wheel_edges:  # a turning wheel: Hall pulses every 10 ms (~1.4 m/s at 13.55 mm/pulse)
+                for k in range(5):
+                    t0 = self.fw.time_us + 2_000 + k * 10_000
+                    self.fw.queue_encoder_edges(0, [t0, t0 + 5_000], [2, 0])
+            while self.fw.time_us < t:
+                self.fw.step_to(t)
+                for idx, tt in self.fw.take_triggers():
+                    self.fw.queue_echo(idx, tt + 200, 1)
+                    self.fw.queue_echo(idx, tt + 200 + self.echo_us[idx], 0)
+            out += decode(self.fw.uart_read())
+        self.msgs += out
+        return out
+
+
+def driving(fw: Firmware) -> bool:
+    return fw.outputs().throttle_us != 1500
+
+
+def texts(msgs) -> list[str]:
+    return [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
+
+
+def last_status(msgs):
+    st = [m for m in msgs if m.get_type() == "AGNAV_BEHAVIOUR_STATUS"]
+    assert st, "no AGNAV_BEHAVIOUR_STATUS"
+    return st[-1]
+
+
+def health_values(msgs) -> list[int]:
+    return [m.value & 0xFFFFFFFF for m in msgs if m.get_type() == "NAMED_VALUE_INT" and m.name == "HEALTH"]
+
+
+def test_healthy_robot_drives_with_the_fault_free_host():
+    with Firmware() as fw:
+        h = Host(fw)
+        h.run(1_500_000)
+        assert driving(fw), f"throttle {fw.outputs().throttle_us} us: the baseline must drive"
+        assert health_values(h.msgs) and max(health_values(h.msgs)) == 0
+
+
+@pytest.mark.parametrize("mode,shift,word", [("timeout", 8, "never echoes"), ("zero", 20, "reads zero")])
+def test_sonar_fault_is_detected_reported_once_and_stops_until_armed(mode, shift, word):
+    with Firmware() as fw:
+        h = Host(fw)
+        h.run(1_000_000)
+        assert driving(fw)
+        fw.fault_sonar(3, mode)
+        t_fault = fw.time_us
+        msgs = h.run(2_100_000)  # HEALTH goes out at 1 Hz
+        assert not driving(fw), f"sonar 3 {mode}: still driving"
+        st = last_status(msgs)
+        assert st.failsafe_flags & D.AGNAV_FAILSAFE_SONAR_FAULT and st.reason == D.AGNAV_REASON_SENSOR_FAULT
+        assert any(v & (1 << (shift + 3)) for v in health_values(msgs)), health_values(msgs)
+        said = [t for t in texts(msgs) if word in t]
+        assert said == [f"health: sonar 3 {word}, stop"], texts(msgs)
+        stops = [m for m in msgs if m.get_type() == "AGNAV_BEHAVIOUR_STATUS" and m.active_layer == D.AGNAV_LAYER_FAILSAFE]
+        assert stops[0].time_boot_ms * 1000 - t_fault <= 1_300_000, "detected within 10 ring frames + a tick"
+        fw.fault_sonar(3, "none")  # the sensor recovers: the latch holds until the host arms
+        h.run(1_000_000)
+        assert not driving(fw), "a latched sensor fault must wait for the host"
+        h.command(D.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        h.run(1_000_000)
+        assert driving(fw), "armed with a healthy sensor: drives again"
+
+
+def test_sonar_free_space_is_not_a_fault():
+    with Firmware() as fw:
+        h = Host(fw)
+        h.echo_us[5] = 30_000  # the echo runs past max range: NO_ECHO, i.e. nothing there
+        h.run(2_500_000)
+        rings = [m for m in h.msgs if m.get_type() == "AGNAV_SONAR_RING"]
+        assert rings[-1].status[5] == D.AGNAV_SONAR_NO_ECHO
+        assert driving(fw)
+        assert max(health_values(h.msgs)) == 0
+
+
+@pytest.mark.parametrize("mode", ["stuck", "disconnected"])
+def test_encoder_without_counts_while_driving_stops(mode):
+    with Firmware(NO_SONAR) as fw:
+        h = Host(fw)
+        h.run(1_000_000)
+        assert driving(fw)
+        fw.fault_encoder(0, mode)
+        t_fault = fw.time_us
+        msgs = h.run(2_000_000)
+        assert not driving(fw), f"encoder {mode}: still driving"
+        assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_ENCODER_FAULT
+        assert "health: encoder 0 no counts while driving, stop" in texts(msgs)
+        first = next(m for m in msgs if m.get_type() == "AGNAV_BEHAVIOUR_STATUS" and m.active_layer == D.AGNAV_LAYER_FAILSAFE)
+        dt_ms = first.time_boot_ms - t_fault / 1000
+        assert 1000 <= dt_ms <= 1100, f"stopped {dt_ms:.0f} ms after the fault (HLTH_ENC_MS = 1000)"
+
+
+def test_encoder_noise_storm_stops():
+    with Firmware({"SONAR_COUNT": 0, "ENC_MODE": 0}) as fw:
+        h = Host(fw)
+        h.run(500_000)
+        fw.fault_encoder(0, "noise")
+        fw.isr_burst(0, 200, 500)  # edges arrive; each is turned into an illegal jump
+        msgs = h.run(500_000)
+        assert not driving(fw)
+        assert "health: encoder 0 illegal edges/storm, stop" in texts(msgs)
+
+
+@pytest.mark.parametrize("cause,text", [("watchdog", "boot: WATCHDOG reset, stopped until armed"),
+                                        ("brown_out", "boot: BROWN-OUT reset, stopped until armed")])
+def test_unexpected_reset_mid_motion_boots_stopped_until_armed(cause, text):
+    with Firmware(NO_SONAR) as fw:
+        h = Host(fw)
+        h.run(1_000_000)
+        assert driving(fw)
+        fw.fault_reset(cause)
+        assert fw.reset_count == 1
+        assert not driving(fw), "outputs neutral right after the reset"
+        msgs = h.run(1_000_000)  # the host keeps sending fresh setpoints
+        assert not driving(fw), "fresh setpoints alone must not restart a robot after an unexpected reset"
+        assert text in texts(msgs)
+        st = last_status(msgs)
+        assert st.failsafe_flags & D.AGNAV_FAILSAFE_WATCHDOG_RESET and st.reason == D.AGNAV_REASON_WATCHDOG_BOOT
+        h.command(D.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        h.run(500_000)
+        assert driving(fw)
+
+
+def test_external_reset_boots_ready():
+    with Firmware(NO_SONAR) as fw:
+        h = Host(fw)
+        h.run(500_000)
+        fw.fault_reset("external")
+        msgs = h.run(1_000_000)
+        assert "boot: external reset" in texts(msgs)
+        assert driving(fw), "a deliberate reset (button, USB) is not a failsafe"
+
+
+def test_corrupt_calibration_falls_back_to_defaults_with_error():
+    with Firmware(NO_SONAR) as fw:
+        h = Host(fw)
+        h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_STEER, D.AGNAV_CALIB_ACTION_SAVE))
+        h.run(300_000)
+        fw.reboot()
+        msgs = Host(fw).run(500_000)
+        assert not last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED, "saved tables load clean"
+        fw.corrupt_record("calib", offset=20, length=1, xor_mask=0x10)
+        fw.reboot()
+        msgs = Host(fw).run(500_000)
+        assert any(t.startswith("calib: EEPROM tables missing or corrupt") for t in texts(msgs)), texts(msgs)
+        assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
+
+
+def test_corrupt_parameters_fall_back_to_defaults_with_error():
+    with Firmware({"SONAR_COUNT": 0, "MAX_SPEED_MM_S": 700}) as fw:
+        assert fw.param_get("MAX_SPEED_MM_S") == 700
+        addr, n = fw.eeprom_record("params")
+        assert n == 4 + 4 * 40 + 2
+        fw.eeprom_corrupt(addr + 4 + 4 * 10, 1, 0x01)  # a bit of MAX_SPEED_MM_S's stored value
+        fw.reboot()
+        msgs = Host(fw).run(500_000)
+        assert fw.param_get("MAX_SPEED_MM_S") == 1000, "default back in use"
+        assert fw.param_get("SONAR_COUNT") == 12, "no value of a corrupt record is applied"
+        assert "params: EEPROM record corrupt, defaults in use" in texts(msgs)
+        assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
+
+
+def test_isr_burst_within_cpu_budget_keeps_the_control_tick():
+    """50 % of the CPU in encoder interrupts for 1.2 s: the 20 ms control tick still runs on time."""
+    with Firmware({"SONAR_COUNT": 0, "ENC_MODE": 0, "HLTH_EDGE_MAX": 0}) as fw:
+        h = Host(fw)
+        h.run(200_000)
+        h.wheel_edges = False
+        fw.kick_gap_max_us()
+        fw.set_isr_cost_us(10)
+        assert fw.isr_burst(0, 60_000, 20) == 60_000  # 1.2 s of 50 kHz legal edges, 10 us each
+        h.run(1_300_000)
+        gap = fw.kick_gap_max_us()
+        assert fw.reset_count == 0
+        assert gap <= 21_000, f"control tick gap {gap} us during the burst"
+
+
+def test_isr_storm_that_starves_the_loop_ends_in_a_stopped_watchdog_boot():
+    """Edges faster than the ISR can take them: the loop never runs, the watchdog resets the core,
+    and the robot comes back stopped."""
+    with Firmware({"SONAR_COUNT": 0, "ENC_MODE": 0}) as fw:
+        h = Host(fw)
+        h.run(500_000)
+        assert driving(fw)
+        h.wheel_edges = False
+        fw.set_isr_cost_us(10)
+        fw.isr_burst(0, 60_000, 5)  # 300 ms of a 200 kHz storm
+        msgs = h.run(1_000_000)
+        assert fw.reset_count >= 1, "the watchdog model must fire"
+        assert not driving(fw)
+        assert "boot: WATCHDOG reset, stopped until armed" in texts(msgs)
+
+
+def test_fault_hooks_reject_bad_indices():
+    with Firmware() as fw:
+        with pytest.raises(ValueError):
+            fw.fault_encoder(4, "stuck")
+        with pytest.raises(ValueError):
+            fw.fault_sonar(12, "zero")
+        assert fw.eeprom_record("signing") == (0x40, 36)
+        assert fw.eeprom_record("calib") == (0x100, 212)
