@@ -165,15 +165,6 @@ def bench_rows(methods: list[str], runs: int = 5, speed_m_s: float = 0.4) -> dic
     return res
 
 
-def _polyline_distance(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> np.ndarray:
-    a, b = line[:-1], line[1:]
-    d = b - a
-    l2 = (d**2).sum(axis=1)
-    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
-    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / l2[None, :], 0.0, 1.0)
-    return np.min(np.hypot(qx - u * d[None, :, 0], qy - u * d[None, :, 1]), axis=1)
-
-
 def curvy_row_scenario(seed: int) -> Scenario:
     """The built-in curvy_row with its bushes drawn from ``world_seed = 7 + seed`` (seed 0 is the built-in world),
     so each benchmark seed has its own bush scatter, not only its own sensor and wheel-slip noise."""
@@ -217,6 +208,33 @@ def calibrate_half_width(sc: Scenario, params: ProximityFollowerParams, distance
     return distance_m - float(np.mean(got))
 
 
+def _polyline_foot(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (m) of each point from a polyline and the x of its foot point on the line."""
+    a, b = line[:-1], line[1:]
+    d = b - a
+    l2 = (d**2).sum(axis=1)
+    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
+    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / l2[None, :], 0.0, 1.0)
+    dist = np.hypot(qx - u * d[None, :, 0], qy - u * d[None, :, 1])
+    j = np.argmin(dist, axis=1)
+    i = np.arange(len(j))
+    return dist[i, j], a[j, 0] + u[i, j] * d[j, 0]
+
+
+def plant_line_offset_m(sc: Scenario, x_m: np.ndarray, half_window_m: float = 1.0) -> np.ndarray:
+    """Where the bushes actually stand: the mean offset (m, + = left of the nominal line, away from a robot on
+    its right) of the world's plant circles within +-half_window_m of each x along the curvy row."""
+    k = 2 * math.pi / 24.0
+    c = sc.world.circles
+    th = np.arctan(1.5 * k * np.cos(k * c[:, 0]))
+    off = (c[:, 1] - 1.5 * np.sin(k * c[:, 0])) * np.cos(th)
+    order = np.argsort(c[:, 0])
+    cx, co = c[order, 0], np.concatenate(([0.0], np.cumsum(off[order])))
+    lo = np.searchsorted(cx, x_m - half_window_m)
+    hi = np.searchsorted(cx, x_m + half_window_m)
+    return (co[hi] - co[lo]) / np.maximum(hi - lo, 1)
+
+
 def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, float]]:
     from agnav_host.sim.world import sine_curve
 
@@ -226,17 +244,41 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, 
     assert cals[0].laser is not None
     params = ProximityFollowerParams(side="left", distance_m=1.0, speed_m_s=0.5, mount=cals[0].laser.mount)
     half_width_m = float(np.mean([calibrate_half_width(c, params) for c in cals]))
+    # the row's centre (plant) line exactly as the scenario parser lays the bushes along it
+    centre = sine_curve(0.0, 0.0, 0.0, 48.0, 1.5, 24.0)
     for seed in seeds:
         sc = curvy_row_scenario(seed)
         assert sc.laser is not None
-        centre = sine_curve(0.0, 0.0, 0.0, 48.0, 1.5, 24.0, step_m=0.05)
         ctrl = ProximityFollower(replace(params, row_half_width_m=half_width_m))
-        traj = closed_loop(sc, ctrl, seed, 150.0, stop=lambda p: p.x_m > 47.0)
+        own: list[tuple[float, float]] = []  # (t, the follower's own distance estimate)
+
+        class Logged:
+            def reset(self) -> None:
+                ctrl.reset()
+
+            def step(self, obs: Observation) -> DriveCommand:
+                cmd = ctrl.step(obs)
+                est = ctrl.distance_estimate_m()
+                own.append((obs.t_s, math.nan if est is None else est))
+                return cmd
+
+        traj = closed_loop(sc, Logged(), seed, 150.0, stop=lambda p: p.x_m > 47.0)
+        d_all, _ = _polyline_foot(traj[:, 1], traj[:, 2], centre)
+        inside = np.abs(d_all - 1.0) <= 0.05
+        capture_x = float(traj[int(np.argmax(inside)), 1]) if inside.any() else math.nan
         keep = traj[:, 1] > PROXIMITY_SETTLE_X_M
-        d = _polyline_distance(traj[keep, 1], traj[keep, 2], centre)
+        x = traj[keep, 1]
+        d, foot_x = _polyline_foot(x, traj[keep, 2], centre)
+        o = np.asarray(own)
+        d_est = np.interp(traj[keep, 0], o[:, 0], o[:, 1])  # held between control steps (zero-order would do as well)
+        d_plants = d + plant_line_offset_m(sc, foot_x)
         out.append({"seed": seed, "world_seed": 7 + seed, "half_width_m": half_width_m, "mean": float(d.mean()),
                     "sd": float(d.std()), "min": float(d.min()), "max": float(d.max()),
-                    "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1])})
+                    "x_min": float(x[np.argmin(d)]), "x_max": float(x[np.argmax(d)]),
+                    "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1]),
+                    "capture_x": capture_x, "est_err_max": float(np.nanmax(np.abs(d_est - d))),
+                    "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0))),
+                    "plants_err_max": float(np.max(np.abs(d_plants - 1.0)))})
     return out
 
 
@@ -493,11 +535,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"(every physics step once the robot is past x = {PROXIMITY_SETTLE_X_M:.0f} m; each seed its own bushes; visible "
               f"half-width {pr[0]['half_width_m']:.3f} m, mean of calibration drives on world_seeds "
               f"{', '.join(str(7 + s) for s in PROXIMITY_CALIBRATION_SEEDS)})")
-        print("| seed | world_seed | mean, m | sd, m | min, m | max, m | within +-0.05 m | x reached, m |")
-        print("|---|---|---|---|---|---|---|---|")
+        print("| seed | world_seed | capture at x, m | mean, m | sd, m | min (at x), m | max (at x), m | within +-0.05 m "
+              "| max abs(own estimate - true), m | max abs(own estimate - 1), m | max abs(d - 1) to the bushes' own line, m |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         for r in pr:
-            print(f"| {r['seed']} | {r['world_seed']} | {r['mean']:.3f} | {r['sd']:.3f} | {r['min']:.3f} "
-                  f"| {r['max']:.3f} | {100.0 * r['inside']:.1f} % | {r['length_m']:.1f} |")
+            print(f"| {r['seed']} | {r['world_seed']} | {r['capture_x']:.2f} | {r['mean']:.3f} | {r['sd']:.3f} "
+                  f"| {r['min']:.3f} ({r['x_min']:.1f}) | {r['max']:.3f} ({r['x_max']:.1f}) | {100.0 * r['inside']:.1f} % "
+                  f"| {r['est_err_max']:.3f} | {r['ctrl_err_max']:.3f} | {r['plants_err_max']:.3f} |")
         sys.stdout.flush()
     if "holes" in parts:
         hr = bench_holes()

@@ -247,7 +247,8 @@ static void check_encoders(uint32_t now_ms)
     health_encoders(now_ms, driving, count, edges, encoder_faults());
 }
 
-/* One STATUSTEXT per newly latched health bit. */
+/* One STATUSTEXT per newly latched health bit, at most one per control tick (twelve sonars
+ * failing together would otherwise send twelve frames in one tick). */
 static void report_health(void)
 {
     uint32_t fresh = health_take_new();
@@ -267,6 +268,7 @@ static void report_health(void)
             link_send_statustext_n(MAV_SEVERITY_ERROR, LINK_TEXT("health: sonar # reads zero, stop"),
                                    (uint8_t)(b - HEALTH_SONAR_ZERO_SHIFT));
         }
+        return;
     }
 }
 
@@ -408,12 +410,24 @@ static const sched_task_t TASKS[TASK_COUNT]; /* the table, defined below */
 static sched_stats_t s_stats[TASK_COUNT];
 static uint8_t s_stats_next;
 
+/* The 1 Hz messages, one per 250 ms call (HEARTBEAT first, at t = 0, 1 s, ...): with signing on
+ * each frame costs ~5.7 ms of SHA-256 on the AVR, and four in one call held the control task
+ * off for ~23 ms (docs/safety.md "Signing"). */
+static uint8_t s_telem1_phase;
+
 static void task_telemetry_1hz(void)
 {
     mavlink_message_t msg;
-    /* SYS_STATUS for ground stations: sensors present / enabled / healthy (proximity = sonar ring,
-     * motor outputs = drive), and the link's receive errors as its drop rate proxy. */
-    {
+    uint8_t phase = s_telem1_phase;
+    s_telem1_phase = (uint8_t)((phase + 1u) & 3u);
+    if (phase == 0u) {
+        uint8_t state = (s_out.failsafe_flags & BHV_FS_STOP_MASK) != 0u ? MAV_STATE_CRITICAL : MAV_STATE_ACTIVE;
+        mavlink_msg_heartbeat_pack(link_sysid(), link_compid(), &msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC,
+                                   MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, s_out.layer, state);
+    } else if (phase == 1u) {
+        /* SYS_STATUS for ground stations: sensors present / enabled / healthy (proximity = sonar
+         * ring, motor outputs = drive), the link's receive errors as its drop rate proxy, and
+         * errors_count1..4: link refusals, unsigned / wrongly signed / replayed frames dropped. */
         uint32_t present = MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | (s_ring != 0 ? MAV_SYS_STATUS_SENSOR_PROXIMITY : 0u);
         uint32_t healthy = present;
         if ((s_out.failsafe_flags & BHV_FS_SONAR_FAULT) != 0u) {
@@ -422,20 +436,17 @@ static void task_telemetry_1hz(void)
         if ((s_out.failsafe_flags & BHV_FS_ENCODER_FAULT) != 0u) {
             healthy &= ~(uint32_t)MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS;
         }
-        /* errors_count1..4: link refusals, unsigned / wrongly signed / replayed frames dropped. */
         const link_state_t *ls = link_state();
         mavlink_msg_sys_status_pack(link_sysid(), link_compid(), &msg, present, present, healthy, 0u, 0u, -1, -1, 0u,
                                     ls->rx_errors, ls->rx_refused, ls->rx_unsigned, ls->rx_bad_signature, ls->rx_replay,
                                     0u, 0u, 0u);
-        send(&msg);
+    } else if (phase == 2u) {
         /* Which sensor failed how: health.h bit layout. */
         static const char health_name[10] = "HEALTH"; /* the pack copies all 10 bytes of the field */
         mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), health_name,
                                          (int32_t)health_bits());
-        send(&msg);
-    }
-    /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
-    {
+    } else {
+        /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
         char name[10] = {'T', '_', 0, 0, 0, 0, 0, 0, 0, 0};
         const char *n = TASKS[s_stats_next].name;
         for (uint8_t k = 0; k < 8u && n[k] != '\0'; k++) {
@@ -443,12 +454,8 @@ static void task_telemetry_1hz(void)
         }
         mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), name,
                                          (int32_t)s_stats[s_stats_next].worst_us);
-        send(&msg);
         s_stats_next = (uint8_t)((s_stats_next + 1u) % TASK_COUNT);
     }
-    uint8_t state = (s_out.failsafe_flags & BHV_FS_STOP_MASK) != 0u ? MAV_STATE_CRITICAL : MAV_STATE_ACTIVE;
-    mavlink_msg_heartbeat_pack(link_sysid(), link_compid(), &msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC,
-                               MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, s_out.layer, state);
     send(&msg);
 }
 
@@ -459,7 +466,7 @@ static const sched_task_t TASKS[TASK_COUNT] = {
     {task_control, 20u, 1000u, "control"},
     {task_telemetry_50hz, 20u, 300u, "telem50"},
     {task_telemetry_10hz, 100u, 800u, "telem10"},
-    {task_telemetry_1hz, 1000u, 300u, "telem1"},
+    {task_telemetry_1hz, 250u, 300u, "telem1"},
 };
 _Static_assert(sizeof TASKS / sizeof TASKS[0] == TASK_COUNT, "TASK_COUNT matches the table");
 
@@ -514,6 +521,7 @@ void agnav_setup(void)
     memset(&s_sent, 0, sizeof s_sent);
     s_out_ms = s_sent_ms = 0u;
     s_stats_next = 0u;
+    s_telem1_phase = 0u;
     s_frame_ms = hal_time_ms();
     defaults();
     params_init(PARAMS, (uint16_t)PARAM_COUNT);

@@ -15,6 +15,10 @@
  * Stimulus, on the pins of firmware/lib/hal/avr/board.h:
  *   --enc-count N --enc-hz F  N quadrature encoders on PORTK (A = PK2i, B = PK2i+1), each
  *                             stepping forward at F edges per second (phases staggered)
+ *   --enc-mirror              encoders 1 and 3 step backward (the mirrored right wheels of a
+ *                             differential drive: their raw quadrature runs B-leads-A)
+ *   --enc-aligned             no stagger: all N encoders step at the same instant (one
+ *                             interrupt sees every encoder change; worst case of a shared vector)
  *   --sonar-mm D              every sonar trigger (PA0..7, PC0..3) is answered on its echo
  *                             line (PB0..7, PD0..3) with a pulse of 2 D / 343 m/s after 200 us
  *   --uart-inject-hex H --uart-inject-hz F
@@ -54,6 +58,8 @@ static int g_timestamps;
 #define ECHO_DELAY_US 200u
 
 static unsigned g_enc_count;
+static int g_enc_aligned;
+static int g_enc_mirror;
 static double g_enc_hz;
 static unsigned long g_enc_edges[MAX_ENC];
 static unsigned g_enc_phase[MAX_ENC];
@@ -134,10 +140,32 @@ static void enc_apply(unsigned i)
 static avr_cycle_count_t enc_tick(avr_t *avr, avr_cycle_count_t when, void *param)
 {
     unsigned i = (unsigned)(uintptr_t)param;
-    g_enc_phase[i] = (g_enc_phase[i] + 1u) & 3u;
+    g_enc_phase[i] = (g_enc_phase[i] + ((g_enc_mirror && (i & 1u)) ? 3u : 1u)) & 3u;
     enc_apply(i);
     g_enc_edges[i]++;
     (void)avr;
+    return when + (avr_cycle_count_t)((double)g_avr->frequency / g_enc_hz);
+}
+
+/* --enc-aligned: every encoder steps at once, then one pin-change interrupt. */
+static avr_cycle_count_t enc_tick_all(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    static const uint8_t A[4] = {0, 1, 1, 0}, B[4] = {0, 0, 1, 1};
+    (void)param;
+    (void)avr;
+    uint8_t changed = 0u;
+    for (unsigned i = 0; i < g_enc_count; i++) {
+        uint8_t before = (uint8_t)((g_enc_a[i]->value ? 1u : 0u) | (g_enc_b[i]->value ? 2u : 0u));
+        g_enc_phase[i] = (g_enc_phase[i] + ((g_enc_mirror && (i & 1u)) ? 3u : 1u)) & 3u;
+        unsigned ph = g_enc_phase[i];
+        avr_raise_irq(g_enc_a[i], A[ph]);
+        avr_raise_irq(g_enc_b[i], B[ph]);
+        changed |= (uint8_t)((before ^ (uint8_t)(A[ph] | (B[ph] << 1))) << (2u * i));
+        g_enc_edges[i]++;
+    }
+    if (changed & g_avr->data[REG_PCMSK2]) {
+        avr_raise_interrupt(g_avr, &g_pcint2);
+    }
     return when + (avr_cycle_count_t)((double)g_avr->frequency / g_enc_hz);
 }
 
@@ -187,7 +215,7 @@ static void on_uart_byte(struct avr_irq_t *irq, uint32_t value, void *param)
 static int usage(void)
 {
     fprintf(stderr, "usage: avr_harness [--mcu NAME] [--freq HZ] [--seconds S] [--timestamps]\n"
-                    "                   [--enc-count N --enc-hz F] [--sonar-mm D] [--isr-stats]\n"
+                    "                   [--enc-count N --enc-hz F [--enc-mirror] [--enc-aligned]] [--sonar-mm D] [--isr-stats]\n"
                     "                   [--uart-inject-hex HEX --uart-inject-hz F] FIRMWARE.elf\n");
     return 2;
 }
@@ -231,6 +259,10 @@ int main(int argc, char **argv)
             pf->addr = (uint32_t)strtoul(colon + 1, NULL, 0);
             pf->depth_sp = -1;
             pf->min = UINT64_MAX;
+        } else if (!strcmp(argv[i], "--enc-mirror")) {
+            g_enc_mirror = 1;
+        } else if (!strcmp(argv[i], "--enc-aligned")) {
+            g_enc_aligned = 1;
         } else if (!strcmp(argv[i], "--isr-stats")) {
             g_isr_stats = 1;
         } else if (argv[i][0] == '-') {
@@ -280,13 +312,24 @@ int main(int argc, char **argv)
     if (g_enc_count > 0) {
         avr_register_vector(g_avr, &g_pcint2);
     }
+    if (g_enc_count > 0) {
+        /* The encoders drive their lines (push-pull): the firmware's PORTK pull-ups must not
+         * lift them, which simavr does to an input pin unless it is declared external. */
+        avr_ioport_external_t ext = {.name = 'K', .mask = (uint8_t)((1u << (2u * g_enc_count)) - 1u), .value = 0};
+        avr_ioctl(g_avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('K'), &ext);
+    }
     for (unsigned i = 0; i < g_enc_count; i++) {
         g_enc_a[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ('K'), (int)(2u * i));
         g_enc_b[i] = avr_io_getirq(g_avr, AVR_IOCTL_IOPORT_GETIRQ('K'), (int)(2u * i + 1u));
         enc_apply(i);
         /* start after boot (0.5 s), staggered so the encoders' edges interleave */
-        avr_cycle_count_t start = freq / 2u + (avr_cycle_count_t)((double)freq / g_enc_hz * i / g_enc_count);
-        avr_cycle_timer_register(g_avr, start, enc_tick, (void *)(uintptr_t)i);
+        avr_cycle_count_t start = freq / 2u + (g_enc_aligned ? 0u : (avr_cycle_count_t)((double)freq / g_enc_hz * i / g_enc_count));
+        if (!g_enc_aligned) {
+            avr_cycle_timer_register(g_avr, start, enc_tick, (void *)(uintptr_t)i);
+        }
+    }
+    if (g_enc_aligned && g_enc_count > 0) {
+        avr_cycle_timer_register(g_avr, freq / 2u, enc_tick_all, NULL);
     }
     if (g_inject_len > 0 && g_inject_hz > 0.0) {
         g_uart_in = avr_io_getirq(g_avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);

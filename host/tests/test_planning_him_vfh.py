@@ -110,7 +110,7 @@ def test_him_visited_cells_make_a_tried_escape_point_dearer():
     pts = np.array([[1.8, -1.5], [1.8, 3.0]])
     assert np.all(p._visit_cost(obs, pts) == 0.0)
     for _ in range(60):  # four seconds at 15 Hz spent in the cell of the first point
-        p._visited[p._cell(1.8, -1.5)] = p._visited.get(p._cell(1.8, -1.5), 0.0) + SPEC.control_dt_s
+        p._visit(p._cell(1.8, -1.5), SPEC.control_dt_s)
     cost = p._visit_cost(obs, pts)
     assert cost[0] == pytest.approx(min(p.params.visit_gain_m_s * 60 * SPEC.control_dt_s, p.params.visit_cap_m))
     assert cost[1] == 0.0

@@ -1,8 +1,6 @@
 """Bounded conflict resolution of the timed planner: a search cut into steps of at most
 ``max_candidates`` plans finds the same answer as the whole search in one call."""
 
-import math
-
 import numpy as np
 
 from agnav_host.planning.timed import BoundaryState, MovingObstacle, TimedLimits, first_conflict, plan_timed, resolve

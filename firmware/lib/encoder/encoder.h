@@ -16,18 +16,23 @@
  * Quadrature: ab = (A << 1) | B. A leading B (ab sequence 0,2,3,1,0) counts
  * up; B leading A (0,1,3,2,0) counts down. A jump in which both lines change
  * at once (0<->3, 1<->2) is illegal: it adds to `errors` and leaves the count
- * alone. Every call adds one to `edges`.
+ * alone. Every level change adds one to `edges` (a repeated level is no edge).
  *
- * Hall mode: one count per pulse (rising edge of A, i.e. ab goes 0 -> 2);
- * the sensor cannot tell direction, so each pulse is signed by the last
- * non-zero hint from encoder_set_direction_hint().
+ * Hall mode: one count per pulse (with B low, the rising edge of A); the
+ * sensor cannot tell direction, so each pulse is signed by the last non-zero
+ * hint from encoder_set_direction_hint().
  *
  * Speed: two estimators, picked per wheel per update (see encoder_update()):
  *   period method   |counts this update| <  crossover_counts:
- *                   speed = travel_per_count / period of the last
- *                   same-direction edge pair; with no new edge the estimate
- *                   decays as travel_per_count / time_since_last_edge and is
- *                   forced to 0 after stop_timeout_ms.
+ *                   speed = travel_per_count * n / span, where span is the
+ *                   time from the last stamped count seen by the previous
+ *                   fold to the last one now, n the counts between (M/T
+ *                   method; n = 1 at low speed, i.e. the single edge period).
+ *                   It needs two stamped counts in one direction run, so the
+ *                   first update after a start or a reversal uses the count
+ *                   method. With no new edge the estimate decays as
+ *                   travel_per_count / time_since_last_edge and is forced to
+ *                   0 after stop_timeout_ms.
  *   count method    |counts this update| >= crossover_counts:
  *                   speed = counts * travel_per_count / update interval.
  * With crossover 8 the count method's quantisation is at most 1/8 at the
@@ -125,11 +130,11 @@ uint32_t encoder_counts_per_wheel_rev(uint16_t lines_per_motor_rev, uint8_t mode
  * count. Also records hal_time_us() as the start of the first update interval. */
 bool encoder_init(uint8_t count, const encoder_cfg_t *cfg);
 
-/* ISR hook (hal_encoder_edge_fn). ab = (A << 1) | B after the edge, t_us the
- * edge time. No division or multiplication. Target was <= 60 AVR cycles;
- * measured under simavr (avr-gcc 5.4 -Os): ~135 cycles for a counted
- * quadrature edge and ~105 for an illegal one, call included (see
- * docs/firmware/encoder_odometry_calib.md for what that costs and why). */
+/* ISR hook (hal_encoder_edge_fn) of the sim and STM32 backends. ab = (A << 1) | B
+ * after the edge, t_us the edge time. Counts and timestamps into the interrupt
+ * record (encoder_isr.h), nothing else. The ATmega2560 board does not call it:
+ * its PORTK vector is hand-written with the same rules (hal/avr/encoder_pcint_avr.S,
+ * <= 60 cycles vector to reti, see BENCHMARKS.md). */
 void encoder_isr_edge(uint8_t idx, uint8_t ab, uint32_t t_us);
 
 /* Hall mode: direction for the following pulses, from the drive command.

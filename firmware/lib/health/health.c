@@ -78,7 +78,8 @@ bool health_sonar_fault(void) { return (h.bits & HEALTH_SONAR_MASK) != 0u; }
 uint32_t health_take_new(void)
 {
     uint32_t fresh = h.bits & ~h.reported;
-    h.reported = h.bits;
+    fresh &= ~fresh + 1u; /* lowest set bit */
+    h.reported |= fresh;
     return fresh;
 }
 

@@ -71,7 +71,8 @@ void health_sonar(const sonar_frame_t *frame);
 uint32_t health_bits(void);
 bool health_encoder_fault(void);
 bool health_sonar_fault(void);
-/* Bits latched since the previous call (each fault is reported once). */
+/* The lowest bit latched and not yet taken (0 if none): each fault is reported once, one
+ * per call. */
 uint32_t health_take_new(void);
 /* Drop the latches (host armed again); a persisting fault latches again. */
 void health_clear(void);

@@ -464,10 +464,16 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     }
 }
 
+/* Frames completed (any outcome) by link_feed: link_poll stops after one while signing is on. */
+static uint8_t s_frames_done;
+
 void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms)
 {
     for (uint16_t i = 0; i < len; i++) {
         uint8_t r = mavlink_frame_char_buffer(&s_rx_msg, &s_rx_status, data[i], NULL, NULL);
+        if (r != MAVLINK_FRAMING_INCOMPLETE) {
+            s_frames_done++;
+        }
         if (r == MAVLINK_FRAMING_OK) {
             handle(&s_rx_msg, now_ms);
         } else if (r == MAVLINK_FRAMING_BAD_SIGNATURE) {
@@ -494,8 +500,18 @@ void link_poll(uint32_t now_ms)
 {
     uint8_t buf[32];
     uint16_t n;
-    while ((n = hal_uart_read(HAL_UART_LINK, buf, sizeof buf)) > 0u) {
-        link_feed(buf, n, now_ms);
+    if (signing_state() == SIGNING_OFF) {
+        while ((n = hal_uart_read(HAL_UART_LINK, buf, sizeof buf)) > 0u) {
+            link_feed(buf, n, now_ms);
+        }
+    } else {
+        /* Each signed frame costs a SHA-256 (~5.7 ms on the AVR): take at most one per call,
+         * byte by byte, so two frames never hold the control task off together. The task runs
+         * every 2 ms; a 57600-baud link delivers a 40-byte frame in ~7 ms. */
+        s_frames_done = 0u;
+        while (s_frames_done == 0u && hal_uart_read(HAL_UART_LINK, buf, 1u) == 1u) {
+            link_feed(buf, 1u, now_ms);
+        }
     }
     if (s_provision_until_ms != 0u && (int32_t)(s_provision_until_ms - now_ms) <= 0) {
         s_provision_until_ms = 0u; /* window closed: unsigned SETUP_SIGNING refused from now on */

@@ -86,11 +86,11 @@ typedef struct {
 } link_state_t;
 
 /* Why a command or message was refused: COMMAND_ACK.result_param2 (AGNAV_REFUSAL in agnav.xml). */
-#define LINK_REFUSAL_NOT_FINITE 1u   /* a used float is NaN or infinite */
-#define LINK_REFUSAL_OUT_OF_RANGE 2u /* a value outside what the firmware can represent or allows */
-#define LINK_REFUSAL_BROADCAST 3u    /* motion or configuration sent to system 0: must be addressed */
-#define LINK_REFUSAL_UNSIGNED 4u     /* key change neither signed with the current key nor provisioned */
-#define LINK_REFUSAL_UNSUPPORTED 5u  /* unknown command id */
+#define LINK_REFUSAL_NOT_FINITE ((uint8_t)AGNAV_REFUSAL_NOT_FINITE)     /* a used float is NaN or infinite */
+#define LINK_REFUSAL_OUT_OF_RANGE ((uint8_t)AGNAV_REFUSAL_OUT_OF_RANGE) /* outside what the firmware allows */
+#define LINK_REFUSAL_BROADCAST ((uint8_t)AGNAV_REFUSAL_BROADCAST)       /* sent to system 0: must be addressed */
+#define LINK_REFUSAL_UNSIGNED ((uint8_t)AGNAV_REFUSAL_UNSIGNED)         /* key change not authorised */
+#define LINK_REFUSAL_UNSUPPORTED ((uint8_t)AGNAV_REFUSAL_UNSUPPORTED)   /* unknown command id */
 
 typedef struct {
     uint8_t sysid;

@@ -158,6 +158,19 @@ static void test_health_new_bits_are_reported_once_and_clear_relatches(void)
     TEST_ASSERT_EQUAL_HEX32(bit, health_take_new());
 }
 
+static void test_health_new_bits_come_one_per_call_lowest_first(void)
+{
+    sonar_frame_t f;
+    frame(&f, 2u, SONAR_FAULT, 0u);
+    f.status[7] = SONAR_FAULT;
+    for (uint8_t k = 0; k < 3u; k++) {
+        health_sonar(&f);
+    }
+    TEST_ASSERT_EQUAL_HEX32(1UL << (HEALTH_SONAR_TIMEOUT_SHIFT + 2u), health_take_new());
+    TEST_ASSERT_EQUAL_HEX32(1UL << (HEALTH_SONAR_TIMEOUT_SHIFT + 7u), health_take_new());
+    TEST_ASSERT_EQUAL_HEX32(0u, health_take_new());
+}
+
 static void test_health_zero_parameters_switch_checks_off(void)
 {
     health_params_t off = {0u, 0u, 0u, 0u};
@@ -186,6 +199,7 @@ int main(void)
     RUN_TEST(test_health_sonar_always_zero_latches_after_zero_frames);
     RUN_TEST(test_health_sonar_close_but_real_range_is_not_zero);
     RUN_TEST(test_health_new_bits_are_reported_once_and_clear_relatches);
+    RUN_TEST(test_health_new_bits_come_one_per_call_lowest_first);
     RUN_TEST(test_health_zero_parameters_switch_checks_off);
     return UNITY_END();
 }

@@ -118,6 +118,31 @@ void setUp(void)
 
 void tearDown(void) {}
 
+/* FIPS 180-4 examples: "abc" (one block) and the 56-byte two-block message (padding spills). */
+static void test_sha256_matches_fips_examples(void)
+{
+    static const uint8_t ABC[6] = {0xba, 0x78, 0x16, 0xbf, 0x8f, 0x01};
+    static const uint8_t TWO[6] = {0x24, 0x8d, 0x6a, 0x61, 0xd2, 0x06};
+    static const uint8_t LONG[6] = {0x41, 0xed, 0xec, 0xe4, 0x2d, 0x63}; /* 1000 x "a" */
+    static const char MSG2[] = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
+    mavlink_sha256_ctx ctx;
+    uint8_t out[6];
+    mavlink_sha256_init(&ctx);
+    mavlink_sha256_update(&ctx, "abc", 3u);
+    mavlink_sha256_final_48(&ctx, out);
+    TEST_ASSERT_EQUAL_HEX8_ARRAY(ABC, out, 6);
+    mavlink_sha256_init(&ctx);
+    mavlink_sha256_update(&ctx, MSG2, 56u);
+    mavlink_sha256_final_48(&ctx, out);
+    TEST_ASSERT_EQUAL_HEX8_ARRAY(TWO, out, 6);
+    mavlink_sha256_init(&ctx);
+    for (uint16_t i = 0; i < 1000u; i++) {
+        mavlink_sha256_update(&ctx, "a", 1u);
+    }
+    mavlink_sha256_final_48(&ctx, out);
+    TEST_ASSERT_EQUAL_HEX8_ARRAY(LONG, out, 6);
+}
+
 static void test_signing_off_without_key_accepts_unsigned(void)
 {
     TEST_ASSERT_EQUAL_UINT8(SIGNING_OFF, signing_state());
@@ -278,6 +303,7 @@ static void test_signing_robot_signs_its_telemetry(void)
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_sha256_matches_fips_examples);
     RUN_TEST(test_signing_off_without_key_accepts_unsigned);
     RUN_TEST(test_signing_unsigned_key_in_provisioning_window_is_set);
     RUN_TEST(test_signing_unsigned_key_after_window_is_refused);

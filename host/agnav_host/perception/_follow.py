@@ -269,7 +269,6 @@ class ProximityFollowerParams:
     trim_m: float = 0.1
     gate_m: float = 0.3
     curvature_filter_m: float = 1.0
-    face_quantile: float | None = None
     meas_std_m: float = 0.02
     meas_std_rad: float = 0.03
     process_std_m: float = 0.01
@@ -280,8 +279,8 @@ class ProximityFollowerParams:
             raise ValueError(f"side must be 'left' or 'right', got {self.side!r}")
         if not (self.distance_m > 0 and self.speed_m_s > 0):
             raise ValueError("ProximityFollowerParams: distance_m and speed_m_s must be > 0")
-        if not (self.window_back_m >= 0 and self.window_ahead_m > 0 and self.bin_m > 0 and 1 <= self.fit_degree <= 4):
-            raise ValueError("ProximityFollowerParams: windows and bin_m must be > 0, fit_degree 1-4")
+        if not (self.window_back_m >= 0 and self.window_ahead_m > 0 and self.bin_m > 0 and 1 <= self.fit_degree <= 3):
+            raise ValueError("ProximityFollowerParams: windows and bin_m must be > 0, fit_degree 1-3")
 
 
 class _RowFaceMap:
@@ -348,12 +347,7 @@ class _RowFaceMap:
         n = np.bincount(b)
         ok = n > 0
         bx = np.bincount(b, rx)[ok] / n[ok]
-        if p.face_quantile is None:
-            by = np.bincount(b, ry)[ok] / n[ok]
-        else:  # the near face: this quantile of each bin's points, counted from the robot's side
-            order = np.lexsort((self.sgn * ry, b))  # by bin, then nearest first
-            start = np.concatenate(([0], np.cumsum(n)[:-1]))[ok]
-            by = ry[order][start + np.floor(p.face_quantile * (n[ok] - 1)).astype(int)]
+        by = np.bincount(b, ry)[ok] / n[ok]
         deg = p.fit_degree if np.ptp(bx) > 2.0 else min(p.fit_degree, 1)
         keep = np.ones(len(bx), dtype=bool)
         coef = None

@@ -322,7 +322,7 @@ class GroundGuardParams:
     tilted: TiltedMount = field(default_factory=TiltedMount)
     ground: GroundParams = field(default_factory=lambda: GroundParams(min_hole_depth_m=0.1))
     cell_m: float = 0.15
-    post_radius_m: float = 0.11  # covers a cell (half its diagonal)
+    post_radius_m: float = 0.2  # covers a cell (half its diagonal, 0.11 m) with 0.09 m to spare
     memory_m: float = 15.0
 
 

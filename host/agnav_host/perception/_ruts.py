@@ -11,12 +11,13 @@ ends of the ruts"), or the centre of a single rut.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..types import DriveCommand, LaserScan, Observation
-from ._follow import DriveLimits
+from ._follow import DriveLimits, _steer
 from ._ground import TiltedMount, ground_points
 
 __all__ = ["Rut", "RutEstimate", "RutParams", "detect_ruts", "RutFollower", "RutFollowerParams"]
@@ -106,30 +107,53 @@ def detect_ruts(scan: LaserScan, tm: TiltedMount, params: RutParams | None = Non
 
 @dataclass(frozen=True)
 class RutFollowerParams:
+    """Rut following (SI units). The midline points seen over the last ``history_m`` of travel are kept in
+    the world frame (through the robot's pose: odometry on a robot); once they span ``min_span_m`` along the
+    robot, a quadratic through them gives the lateral error, heading error and curvature at the robot, and the
+    row followers' steering law (``omega_n``, ``zeta``, curvature feed-forward) drives the error to zero.
+    Before that: pure pursuit to the latest midline point, low-passed with ``smoothing``."""
+
     tilted: TiltedMount = field(default_factory=TiltedMount)
     ruts: RutParams = field(default_factory=RutParams)
     limits: DriveLimits = field(default_factory=DriveLimits)
     speed_m_s: float = 0.4
-    smoothing: float = 0.5  # low-pass weight of the previous midline
+    smoothing: float = 0.5  # low-pass weight of the previous midline (pure pursuit only)
+    history_m: float = 3.0
+    min_span_m: float = 1.2
+    omega_n_rad_s: float = 1.2
+    zeta: float = 0.9
+
+    def __post_init__(self) -> None:
+        if not (self.speed_m_s > 0 and self.history_m > 0 and self.min_span_m > 0 and self.omega_n_rad_s > 0
+                and self.zeta > 0 and 0 <= self.smoothing < 1):
+            raise ValueError("RutFollowerParams: speed, history, span, omega_n and zeta must be > 0, 0 <= smoothing < 1")
 
 
 class RutFollower:
-    """Pure pursuit to the rut midline point on the tilted scan line (``obs.extras['tilted_scan']``):
-    curvature ``2 y / (x^2 + y^2)`` to the point (x, y) ahead; straight on while no rut is seen."""
+    """Follow the rut midline seen on the tilted scan line (``obs.extras['tilted_scan']``); see
+    :class:`RutFollowerParams`. Straight on while no rut has been seen."""
 
     uses_tilted_laser = True  # the simulator's runner then puts the tilted scan in obs.extras
 
     def __init__(self, params: RutFollowerParams | None = None) -> None:
         self.params = params or RutFollowerParams()
-        self._y: float | None = None
-        self._x = 1.0
+        self.reset()
 
     def reset(self) -> None:
-        self._y = None
+        self._y: float | None = None
         self._x = 1.0
+        self._pts: list[tuple[float, float, float]] = []  # (travel, world x, world y) of midline points
+        self._s = 0.0
+        self._last: tuple[float, float] | None = None
+        self.state: tuple[float, float, float] | None = None  # last (lateral error, heading error, curvature)
 
     def step(self, obs: Observation) -> DriveCommand:
         p = self.params
+        pose = obs.pose
+        if self._last is not None:
+            self._s += math.hypot(pose.x_m - self._last[0], pose.y_m - self._last[1])
+        self._last = (pose.x_m, pose.y_m)
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         ts = obs.extras.get("tilted_scan")
         if isinstance(ts, LaserScan):
             est = detect_ruts(ts, p.tilted, p.ruts)
@@ -137,8 +161,22 @@ class RutFollower:
                 xm, ym = est.midline_xy
                 self._y = ym if self._y is None else p.smoothing * self._y + (1 - p.smoothing) * ym
                 self._x = xm
+                self._pts.append((self._s, pose.x_m + c * xm - s * ym, pose.y_m + s * xm + c * ym))
+        while self._pts and self._pts[0][0] < self._s - p.history_m:
+            self._pts.pop(0)
+        if len(self._pts) >= 6:
+            w = np.asarray(self._pts)
+            dx, dy = w[:, 1] - pose.x_m, w[:, 2] - pose.y_m
+            x, y = c * dx + s * dy, -s * dx + c * dy  # robot frame
+            if float(np.ptp(x)) >= p.min_span_m:
+                a0, b1, c2 = (float(v) for v in np.polynomial.polynomial.polyfit(x, y, 2))
+                e = -a0 * math.cos(math.atan(b1))  # robot left of the midline: positive
+                psi = -math.atan(b1)
+                kappa = 2.0 * c2 / (1.0 + b1 * b1) ** 1.5
+                self.state = (e, psi, kappa)
+                return _steer(p.limits, p.speed_m_s, e, psi, kappa, p.omega_n_rad_s, p.zeta)
         if self._y is None:
             return p.limits.command(p.speed_m_s, 0.0)
-        x = self._x
-        k = 2.0 * self._y / max(x * x + self._y * self._y, 1e-6)
+        x0 = self._x
+        k = 2.0 * self._y / max(x0 * x0 + self._y * self._y, 1e-6)
         return p.limits.command(p.speed_m_s, p.speed_m_s * k)

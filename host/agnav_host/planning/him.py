@@ -50,7 +50,7 @@ class HimParams:
     turn_in_place_rad: float = math.radians(60.0)
     slow_radius_m: float = 0.6
     memory_s: float = 30.0  # returns kept to fill the laser's blind sector (see the module docstring)
-    memory_cell_m: float = 0.05
+    memory_cell_m: float = 0.1
     memory_radius_m: float = 3.0
     trapped_s: float = 4.0  # time spent around the robot's cell that counts as trapped
     cell_m: float = 0.4  # visited-cells memory (see the module docstring)
@@ -111,6 +111,7 @@ class HimPlanner:
         self.subgoal_world: tuple[float, float] | None = None
 
         self._visited: dict[tuple[int, int], float] = {}
+        self._around: dict[tuple[int, int], float] = {}  # the same summed over each cell's 3 x 3 block
         self._mem_xy = np.zeros((0, 2))
         self._mem_t = np.zeros(0)
         self._steps = 0
@@ -118,6 +119,7 @@ class HimPlanner:
     def reset(self) -> None:
         self.subgoal_world = None
         self._visited = {}
+        self._around = {}
         self._mem_xy = np.zeros((0, 2))  # remembered returns, odometry frame, m
         self._mem_t = np.zeros(0)  # when each was last seen, s
         self._steps = 0
@@ -146,7 +148,7 @@ class HimPlanner:
                 blind = (a < min(a0, a1)) | (a > max(a0, a1))
             extra = np.column_stack((lx[blind], ly[blind]))
         self._steps += 1
-        if p.memory_s > 0.0 and (self._steps % 3 == 1 or trapped):  # every third scan is plenty
+        if p.memory_s > 0.0 and self._steps % 3 == 1:  # every third scan is plenty
             wx = obs.pose.x_m + c * (view.xy[:, 0] + off) - s * view.xy[:, 1]
             wy = obs.pose.y_m + s * (view.xy[:, 0] + off) + c * view.xy[:, 1]
             near = np.hypot(view.xy[:, 0], view.xy[:, 1]) < p.memory_radius_m
@@ -169,9 +171,17 @@ class HimPlanner:
         c = self.params.cell_m
         return (int(math.floor(x / c)), int(math.floor(y / c)))
 
+    def _visit(self, cell: tuple[int, int], dt_s: float) -> None:
+        """Count ``dt_s`` spent in ``cell``."""
+        self._visited[cell] = self._visited.get(cell, 0.0) + dt_s
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                k = (cell[0] + di, cell[1] + dj)
+                self._around[k] = self._around.get(k, 0.0) + dt_s
+
     def _time_here(self, cell: tuple[int, int]) -> float:
         """Time spent in ``cell`` and its 8 neighbours, s."""
-        return sum(self._visited.get((cell[0] + di, cell[1] + dj), 0.0) for di in (-1, 0, 1) for dj in (-1, 0, 1))
+        return self._around.get(cell, 0.0)
 
     def _visit_cost(self, obs: Observation, pts: FloatArray) -> FloatArray:
         """Visited-cells cost (k,) of robot-frame points (k, 2), m: the time spent in each point's
@@ -184,11 +194,10 @@ class HimPlanner:
         x = pts[:, 0] + self.spec.footprint_offset_m
         ci = np.floor((obs.pose.x_m + c * x - s * pts[:, 1]) / p.cell_m).astype(int)
         cj = np.floor((obs.pose.y_m + s * x + c * pts[:, 1]) / p.cell_m).astype(int)
-        get = self._visited.get
+        get, around = self._visited.get, self._around.get
         for k in range(len(pts)):
-            i, j = int(ci[k]), int(cj[k])
-            t = 0.5 * self._time_here((i, j)) + 0.5 * get((i, j), 0.0)
-            out[k] = min(p.visit_gain_m_s * t, p.visit_cap_m)
+            key = (int(ci[k]), int(cj[k]))
+            out[k] = min(p.visit_gain_m_s * (0.5 * around(key, 0.0) + 0.5 * get(key, 0.0)), p.visit_cap_m)
         return out
 
     def _to_robot(self, obs: Observation, x: float, y: float) -> tuple[float, float]:
@@ -215,9 +224,9 @@ class HimPlanner:
     def step(self, obs: Observation) -> DriveCommand:
         p, spec = self.params, self.spec
         cell = self._cell(obs.pose.x_m, obs.pose.y_m)
-        self._visited[cell] = self._visited.get(cell, 0.0) + spec.control_dt_s
+        self._visit(cell, spec.control_dt_s)
         view = self._wide_view(obs, local_view(obs, spec), self._time_here(cell) >= p.trapped_s)
-        pts = view.xy  # joined by the polar-grid cells once escape points are needed
+        pts = view.xy
         r = spec.radius_m
         d_goal, g_rel = goal_in_robot_frame(obs)
         gx, gy = self._to_robot(obs, obs.goal.x_m, obs.goal.y_m)
@@ -244,7 +253,8 @@ class HimPlanner:
             ang, rng = polar_grid(view, p.bin_rad, p.horizon_m)
             cand = escape_points(ang, rng, r, p.margin_m, p.horizon_m)
             near = rng < p.horizon_m
-            pts = np.concatenate((view.xy, np.column_stack((rng[near] * np.cos(ang[near]), rng[near] * np.sin(ang[near])))))
+            # the straight-line test uses every return, not only the grid's cells: a wall seen at a
+            # grazing angle leaves cells farther apart than the body is wide
             best = None
             if len(cand):
                 dist = np.hypot(cand[:, 0], cand[:, 1])
@@ -293,10 +303,11 @@ def departing_free_m(points_xy: FloatArray, directions_rad: FloatArray, half_wid
     overlaps only blocks the directions that close in on it (moving off a wall is free)."""
     d = np.asarray(directions_rad, dtype=float)
     out = np.full(len(d), horizon_m)
-    if len(points_xy) == 0:
+    near = points_xy[np.hypot(points_xy[:, 0], points_xy[:, 1]) < horizon_m + half_width_m] if len(points_xy) else points_xy
+    if len(near) == 0:
         return out
     ux, uy = np.cos(d)[:, None], np.sin(d)[:, None]
-    px, py = points_xy[None, :, 0], points_xy[None, :, 1]
+    px, py = near[None, :, 0], near[None, :, 1]
     along = px * ux + py * uy
     lat = np.abs(px * uy - py * ux)
     dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))

@@ -8,7 +8,10 @@
  *   ESC / throttle    Timer3 OC3B = PE4 (D2), 50 Hz, 1000-2000 us
  *   H-bridge PWM      Timer4 OC4A = PH3 (D6) left, OC4B = PH4 (D7) right, 8-bit duty
  *   H-bridge DIR      PH5 (D8) left, PH6 (D9) right
- *   encoders          PORTK (A8..A15), PCINT2: encoder i has A on PK(2i), B on PK(2i+1)
+ *   encoders          PORTK (A8..A15), PCINT2: encoder i has A on PK(2i), B on PK(2i+1);
+ *                     one hand-written vector decodes all four (encoder_pcint_avr.S)
+ *   GPIOR0..2         reserved for that vector: GPIOR1 = PINK at the last interrupt,
+ *                     GPIOR0 / GPIOR2 scratch (no other code may use them)
  *   sonar triggers    PA0..PA7 (D22..D29) sonars 0..7, PC0..PC3 (D37..D34) sonars 8..11
  *   sonar echoes      PB0..PB7 (D53, D52, D51, D50, D10, D11, D12, D13) sonars 0..7 via PCINT0,
  *                     PD0..PD3 (D21, D20, D19, D18) sonars 8..11 via INT0..INT3

@@ -190,8 +190,12 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
     uint8_t sreg = SREG;
     cli();
     DDRK &= (uint8_t)~mask;
-    PORTK |= mask; /* pull-ups: open-collector Hall sensors; B of a Hall wheel reads 1 */
+    /* The levels the vector decodes from, read before the pull-ups go on: a driven line
+     * (push-pull encoder, the SIL/harness rigs) reads its level either way, and simavr lets
+     * a pull-up override a driven line. A floating open-collector line (Hall) can cost one
+     * count or one illegal jump at boot. */
     GPIOR1 = PINK;
+    PORTK |= mask; /* pull-ups: open-collector Hall sensors; B of a Hall wheel reads 1 */
     (void)fn; /* always the assembly vector on this board */
     PCMSK2 = mask;
     PCIFR = (uint8_t)(1u << PCIF2); /* drop a change seen before GPIOR1 was seeded */

@@ -183,7 +183,26 @@ void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
 
 void hal_watchdog_start(uint16_t timeout_ms) { (void)timeout_ms; }
 void hal_watchdog_kick(void) {}
-hal_reset_cause_t hal_reset_cause(void) { return HAL_RESET_POWER_ON; }
+/* RCC_CSR reset flags (RM0090 6.3.21), read once and cleared (RMVF) on the first call, which
+ * main makes at boot. Every reset drives NRST, so PINRSTF alone means the pin; POR sets BORRSTF
+ * too. QEMU does not model the RCC (reads 0): taken as a power-on. */
+#define RCC_CSR REG32(0x40023874u)
+hal_reset_cause_t hal_reset_cause(void)
+{
+    static uint32_t s_csr;
+    static bool s_read;
+    if (!s_read) {
+        s_read = true;
+        s_csr = RCC_CSR;
+        RCC_CSR |= (1u << 24); /* RMVF */
+    }
+    if (s_csr & ((1u << 29) | (1u << 30))) return HAL_RESET_WATCHDOG; /* IWDG, WWDG */
+    if (s_csr & (1u << 27)) return HAL_RESET_POWER_ON;                /* POR */
+    if (s_csr & (1u << 25)) return HAL_RESET_BROWN_OUT;               /* BOR without POR */
+    if (s_csr & (1u << 28)) return HAL_RESET_OTHER;                   /* software */
+    if (s_csr & (1u << 26)) return HAL_RESET_EXTERNAL;                /* NRST pin */
+    return HAL_RESET_POWER_ON;
+}
 
 /* HSI 16 MHz / M 16 * N 336 / P 2 = 168 MHz; APB2 /2, APB1 /4. QEMU does not model
  * the RCC (its core clock is fixed at 168 MHz), so every wait is bounded. */

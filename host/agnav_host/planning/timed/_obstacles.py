@@ -193,8 +193,7 @@ def first_blocked_s(plan: TimedPlan, points_xy: FloatArray, s_from_m: float, s_t
     if not near.any():
         return None
     pts = points_xy[near]
-    d = np.hypot(cx[:, None] - pts[None, :, 0], cy[:, None] - pts[None, :, 1])
-    hit = d < lim
+    hit = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2 < lim * lim
     rows = np.flatnonzero(hit.any(axis=1))
     if len(rows) == 0:
         return None

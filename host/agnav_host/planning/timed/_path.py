@@ -205,27 +205,14 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
     hs: list[FloatArray] = []
     forms: list[str] = []
     for a, b in zip(states[:-1], states[1:]):
-        dx, dy = b.x_m - a.x_m, b.y_m - a.y_m
-        chord = math.hypot(dx, dy)
-        if chord < 1e-6:
-            raise ValueError(f"two consecutive path states coincide at ({a.x_m:.3f}, {a.y_m:.3f})")
-        c_yaw = math.atan2(dy, dx)
-        cc, sc = math.cos(c_yaw), math.sin(c_yaw)
-        ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
-        rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
-        form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
-        CX, CY = _leg_candidates(ra, rb, chord * _SCALES, wheelbase_m, form)
-        _, _, sp, kap, _ = _eval_leg(CX, CY, 41)
-        ok = sp.min(axis=0) >= 1e-3 * chord  # no cusp
-        if not ok.any():
-            raise ValueError("no cusp-free polynomial leg between the states")
-        peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
-        j = int(np.argmin(peak))
-        cx, cy = CX[:, j], CY[:, j]
-        n = int(min(max(math.ceil(chord / spacing_m / 20.0) * 20, 40), 1500))  # quantised: reuses bases
-        lx, ly, _, kap, hd = _eval_leg(cx, cy, n + 1)
-        wx, wy = a.x_m + cc * lx - sc * ly, a.y_m + sc * lx + cc * ly
-        hd = hd + c_yaw
+        key = (a.x_m, a.y_m, a.yaw_rad, a.steer_rad, b.x_m, b.y_m, b.yaw_rad, b.steer_rad, wheelbase_m, spacing_m)
+        leg = _LEGS.get(key)
+        if leg is None:
+            leg = _build_leg(a, b, wheelbase_m, spacing_m)
+            if len(_LEGS) >= 64:
+                _LEGS.clear()
+            _LEGS[key] = leg
+        wx, wy, kap, hd, form = leg
         if xs:  # drop the duplicated joint
             wx, wy, kap, hd = wx[1:], wy[1:], kap[1:], hd[1:]
         xs.append(wx)
@@ -242,3 +229,35 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
     ends = np.cumsum([len(h) for h in hs]) - 1
     knots = (0.0,) + tuple(float(s[i]) for i in ends)
     return GeoPath(np.column_stack((x, y)), yaw, kappa, s, tuple(forms), knots)
+
+
+#: legs already built (a search rebuilds the same legs behind its via point for every candidate and
+#: every control step); keyed by the exact end states, cleared when full. Entries are never modified.
+_LEGS: dict[tuple[float, ...], tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]] = {}
+
+
+def _build_leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float,
+               spacing_m: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]:
+    """One leg in world coordinates: (x, y, kappa, heading, form); see :func:`build_path`."""
+    dx, dy = b.x_m - a.x_m, b.y_m - a.y_m
+    chord = math.hypot(dx, dy)
+    if chord < 1e-6:
+        raise ValueError(f"two consecutive path states coincide at ({a.x_m:.3f}, {a.y_m:.3f})")
+    c_yaw = math.atan2(dy, dx)
+    cc, sc = math.cos(c_yaw), math.sin(c_yaw)
+    ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
+    rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
+    form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
+    CX, CY = _leg_candidates(ra, rb, chord * _SCALES, wheelbase_m, form)
+    _, _, sp, kap, _ = _eval_leg(CX, CY, 41)
+    ok = sp.min(axis=0) >= 1e-3 * chord  # no cusp
+    if not ok.any():
+        raise ValueError("no cusp-free polynomial leg between the states")
+    peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
+    j = int(np.argmin(peak))
+    cx, cy = CX[:, j], CY[:, j]
+    n = int(min(max(math.ceil(chord / spacing_m / 20.0) * 20, 40), 1500))  # quantised: reuses bases
+    lx, ly, _, kap, hd = _eval_leg(cx, cy, n + 1)
+    wx, wy = a.x_m + cc * lx - sc * ly, a.y_m + sc * lx + cc * ly
+    hd = hd + c_yaw
+    return wx, wy, kap, hd, form

@@ -83,7 +83,9 @@ class TimedParams:
     def __post_init__(self) -> None:
         if not 0 < self.plan_steer_deg <= self.max_steer_deg < 90:
             raise ValueError("TimedParams: need 0 < plan_steer_deg <= max_steer_deg < 90")
-        for k in ("accel_m_s2", "detect_range_m", "horizon_s", "replan_budget_s", "lookahead_min_m"):
+        if self.max_candidates < 1:
+            raise ValueError(f"TimedParams.max_candidates must be >= 1, got {self.max_candidates}")
+        for k in ("accel_m_s2", "detect_range_m", "horizon_s", "replan_budget_s", "lookahead_min_m", "command_min_m_s"):
             if not getattr(self, k) > 0:
                 raise ValueError(f"TimedParams.{k} must be > 0, got {getattr(self, k)}")
 
