@@ -1,7 +1,7 @@
 """Perception benchmark: closed-loop row following, proximity following, hole detection, latency.
 
 Run:  .venv/bin/python bench/bench_perception.py            (all, a few minutes)
-      .venv/bin/python bench/bench_perception.py --only rows,proximity,holes,ruts,hole_field,latency
+      .venv/bin/python bench/bench_perception.py --only rows,proximity,face,holes,ruts,hole_field,latency
 Everything is seeded; the figures go to bench/results/perception.md by hand.
 
 * rows: five runs per detection method ("clean": reached the row end without touching a crop plant;
@@ -16,6 +16,8 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
   The visible half-width of the row is calibrated once (the follower's estimator on calibration drives along a line
   1 m from three other rows, world_seeds 1007-1009). Distance = from the robot to the row's centre polyline, every
   physics step once the robot is past x = 2 m (the settling: it starts 0.92 m from the line, 21 deg off the row).
+* face: how far the curvy row's visible face itself strays from its plant line, per world (no simulation):
+  the floor under any follower that sees only the face (see bush_face_floor).
 * holes: the five hole sizes of ref 000 table 5-I, each approached head-on and at 30 deg from three
   seeded starts; "detected" = a hole cell reported inside the true hole while the robot's front is
   still outside it.
@@ -221,18 +223,35 @@ def _polyline_foot(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> tuple[np
     return dist[i, j], a[j, 0] + u[i, j] * d[j, 0]
 
 
-def plant_line_offset_m(sc: Scenario, x_m: np.ndarray, half_window_m: float = 1.0) -> np.ndarray:
-    """Where the bushes actually stand: the mean offset (m, + = left of the nominal line, away from a robot on
-    its right) of the world's plant circles within +-half_window_m of each x along the curvy row."""
+def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[float, ...] = (3.0, 6.0, 11.0)
+                    ) -> list[dict[str, float]]:
+    """How far the row's visible face itself strays from the plant line, per world: the face the robot sees
+    (right side of the row: at each 5 cm station the nearest point of any bush circle) is averaged over a
+    window of each length along the row, and the largest deviation of that running mean from the world's
+    mean face is reported (m). A follower that knew the row's shape exactly and averaged the face uniformly
+    over that length would still be off the plant line by this much, plus its own noise."""
     k = 2 * math.pi / 24.0
-    c = sc.world.circles
-    th = np.arctan(1.5 * k * np.cos(k * c[:, 0]))
-    off = (c[:, 1] - 1.5 * np.sin(k * c[:, 0])) * np.cos(th)
-    order = np.argsort(c[:, 0])
-    cx, co = c[order, 0], np.concatenate(([0.0], np.cumsum(off[order])))
-    lo = np.searchsorted(cx, x_m - half_window_m)
-    hi = np.searchsorted(cx, x_m + half_window_m)
-    return (co[hi] - co[lo]) / np.maximum(hi - lo, 1)
+    out = []
+    for seed in seeds:
+        c = curvy_row_scenario(seed).world.circles
+        th = np.arctan(1.5 * k * np.cos(k * c[:, 0]))
+        off = (c[:, 1] - 1.5 * np.sin(k * c[:, 0])) * np.cos(th)  # + = left of the plant line
+        st = np.arange(0.0, 48.0, 0.05)
+        dx = np.abs(c[None, :, 0] - st[:, None])
+        over = dx < c[None, :, 2]
+        near = np.where(over, off[None, :] - np.sqrt(np.maximum(c[None, :, 2] ** 2 - dx**2, 0.0)), np.inf).min(axis=1)
+        ok = np.isfinite(near)
+        mean = float(near[ok & (st > 2.0) & (st < 46.0)].mean())
+        row: dict[str, float] = {"seed": seed, "face_mean_m": mean}
+        for w in windows_m:
+            n = int(round(w / 0.05))
+            num = np.convolve(np.where(ok, near, 0.0), np.ones(n), "same")
+            den = np.convolve(ok.astype(float), np.ones(n), "same")
+            run = num / np.maximum(den, 1.0)
+            m = (st > 2.0 + w / 2) & (st < 46.0 - w / 2)
+            row[f"w{w:g}"] = float(np.max(np.abs(run[m] - mean)))
+        out.append(row)
+    return out
 
 
 def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, float]]:
@@ -264,21 +283,18 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, 
 
         traj = closed_loop(sc, Logged(), seed, 150.0, stop=lambda p: p.x_m > 47.0)
         d_all, _ = _polyline_foot(traj[:, 1], traj[:, 2], centre)
-        inside = np.abs(d_all - 1.0) <= 0.05
-        capture_x = float(traj[int(np.argmax(inside)), 1]) if inside.any() else math.nan
         keep = traj[:, 1] > PROXIMITY_SETTLE_X_M
         x = traj[keep, 1]
-        d, foot_x = _polyline_foot(x, traj[keep, 2], centre)
+        d = d_all[keep]
         o = np.asarray(own)
-        d_est = np.interp(traj[keep, 0], o[:, 0], o[:, 1])  # held between control steps (zero-order would do as well)
-        d_plants = d + plant_line_offset_m(sc, foot_x)
+        d_est = np.interp(traj[keep, 0], o[:, 0], o[:, 1])  # the follower's estimate, between its control steps
         out.append({"seed": seed, "world_seed": 7 + seed, "half_width_m": half_width_m, "mean": float(d.mean()),
                     "sd": float(d.std()), "min": float(d.min()), "max": float(d.max()),
                     "x_min": float(x[np.argmin(d)]), "x_max": float(x[np.argmax(d)]),
                     "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1]),
-                    "capture_x": capture_x, "est_err_max": float(np.nanmax(np.abs(d_est - d))),
-                    "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0))),
-                    "plants_err_max": float(np.max(np.abs(d_plants - 1.0)))})
+                    "whole_min": float(d_all.min()), "whole_max": float(d_all.max()),
+                    "est_err_max": float(np.nanmax(np.abs(d_est - d))),
+                    "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0)))})
     return out
 
 
@@ -507,7 +523,7 @@ def bench_latency(repeats: int = 400) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="rows,proximity,holes,ruts,hole_field,latency")
+    ap.add_argument("--only", default="rows,proximity,face,holes,ruts,hole_field,latency")
     ap.add_argument("--methods", default=",".join(row_method_names()))
     ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
                     help="where the closed-loop figures go (PNG; '' for none)")
@@ -535,13 +551,22 @@ def main(argv: list[str] | None = None) -> int:
         print(f"(every physics step once the robot is past x = {PROXIMITY_SETTLE_X_M:.0f} m; each seed its own bushes; visible "
               f"half-width {pr[0]['half_width_m']:.3f} m, mean of calibration drives on world_seeds "
               f"{', '.join(str(7 + s) for s in PROXIMITY_CALIBRATION_SEEDS)})")
-        print("| seed | world_seed | capture at x, m | mean, m | sd, m | min (at x), m | max (at x), m | within +-0.05 m "
-              "| max abs(own estimate - true), m | max abs(own estimate - 1), m | max abs(d - 1) to the bushes' own line, m |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        print("| seed | world_seed | mean, m | sd, m | min (at x), m | max (at x), m | within +-0.05 m "
+              "| whole run incl. settling, m | max abs(own estimate - true), m | max abs(own estimate - 1), m |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for r in pr:
-            print(f"| {r['seed']} | {r['world_seed']} | {r['capture_x']:.2f} | {r['mean']:.3f} | {r['sd']:.3f} "
+            print(f"| {r['seed']} | {r['world_seed']} | {r['mean']:.3f} | {r['sd']:.3f} "
                   f"| {r['min']:.3f} ({r['x_min']:.1f}) | {r['max']:.3f} ({r['x_max']:.1f}) | {100.0 * r['inside']:.1f} % "
-                  f"| {r['est_err_max']:.3f} | {r['ctrl_err_max']:.3f} | {r['plants_err_max']:.3f} |")
+                  f"| {r['whole_min']:.3f}-{r['whole_max']:.3f} | {r['est_err_max']:.3f} | {r['ctrl_err_max']:.3f} |")
+        sys.stdout.flush()
+    if "face" in parts:
+        fl = bush_face_floor()
+        print("\n(the bushes' face against the plant line: largest deviation of its running mean over 3 / 6 / 11 m of row "
+              "from the world's mean face, m; a floor for any follower that sees only the face)")
+        print("| seed | mean face, m from the plant line | 3 m | 6 m | 11 m |")
+        print("|---|---|---|---|---|")
+        for r in fl:
+            print(f"| {r['seed']} | {r['face_mean_m']:+.3f} | {r['w3']:.3f} | {r['w6']:.3f} | {r['w11']:.3f} |")
         sys.stdout.flush()
     if "holes" in parts:
         hr = bench_holes()
@@ -558,7 +583,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()
     if "ruts" in parts:
         ruts_res = bench_ruts()
-        print(f"\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser in the runner")
+        print("\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser in the runner")
         print(f"(lateral error to the true midline, every physics step once the robot is past x = {RUTS_SETTLE_X_M:.0f} m)")
         print("| seed | start offset, m | end | x reached, m | mean abs(e), m | sd, m | max abs(e), m |")
         print("|---|---|---|---|---|---|---|")

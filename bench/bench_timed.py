@@ -6,22 +6,26 @@ on single-robot cases with unknown static obstacles, walking people and delays, 
 crossing, and prints one table (markdown) plus the replanning times.
 
     .venv/bin/python bench/bench_timed.py [--seeds 5] [--quick]
+    .venv/bin/python bench/bench_timed.py --sil [--multi] [--seeds 5]   # firmware in the loop only
 
 Definitions: *arrival* = first time the rear-axle centre is within 5 cm of the goal; *arrival error* =
 arrival - set time; *final position / heading error* = at rest after arrival (end of the run);
 *replan time* = wall time of each replanning call (catch-up, static deviation, moving-obstacle
-resolution), not of plain tracking steps. Moving obstacles reach the planner as tracks made from the
-simulator's ground truth plus noise (position sigma 5 cm, velocity sigma 0.1 m/s, reported speed sigma
-0.15 m/s): a stand-in for perception's tracker, which is not in the tree yet. The main tables run in the
-world simulator with the planner seeing the true pose; the last section runs the same planner through
-the lock-step firmware SIL (agnav_host.sil), where it steers on the firmware's odometry (one Hall
-sensor on the rear axle, 1 % slip) and the errors are measured on the true pose.
+resolution), not of plain tracking steps. Moving obstacles reach the planner from perception's tracker
+(agnav_host.perception.ObstacleTracker) run by the planner on the laser scans, placed with the pose
+the scan carries (in the SIL: the host's believed pose). One comparison row instead feeds tracks made
+from the simulator's ground truth plus noise (position sigma 5 cm, velocity sigma 0.1 m/s, reported
+speed sigma 0.15 m/s). The main tables run in the world simulator with the planner seeing the true
+pose; the last sections run the same planner through the lock-step firmware SIL (agnav_host.sil),
+where it steers on the firmware's odometry fused with surveyed posts and the errors are measured on
+the true pose; ``--multi``: three robots, one firmware each, in one shared world (agnav_host.sil.fleet).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import platform
 import sys
 import time
@@ -243,14 +247,17 @@ class SilCase:
     replan_times_s: list[float] = field(default_factory=list)
     events: list[tuple[float, str]] = field(default_factory=list)
     posts_used: int = 0
+    replan_cpu_s: list[float] = field(default_factory=list)
+    moving_tracked_max: int = 0  # most moving tracks the planner's tracker reported at one step
 
 
 def run_sil(sc: Scenario, seed: int, *, localise: bool = True, tracks: bool = False, name: str | None = None) -> SilCase:
     """The ``timed`` planner on the host side of the lock-step SIL (real firmware built natively,
     calibration tables with the dead band provisioned over the link, radio link model). The host
     steers on the firmware's odometry, fused with the surveyed posts when ``localise`` and the
-    scenario lists them; ``tracks``: moving obstacles reach it as tracks (see :func:`_tracks`). Runs to
-    rest after arrival or to T + 6 s."""
+    scenario lists them; moving obstacles come from the planner's tracker on the host's scans, or with
+    ``tracks`` from the world's truth plus noise (see :func:`_tracks`). Runs to rest after arrival or
+    to T + 6 s."""
     from agnav_host.sil.session import PlannerHost, SilSession
 
     if not localise:
@@ -271,6 +278,7 @@ def run_sil(sc: Scenario, seed: int, *, localise: bool = True, tracks: bool = Fa
         collided = False
         loc_err = 0.0
         n_cmd = 0
+        n_moving = 0
         while True:
             s.step()
             t = (s.t_us - t0) * 1e-6
@@ -282,6 +290,7 @@ def run_sil(sc: Scenario, seed: int, *, localise: bool = True, tracks: bool = Fa
                 break
             if len(host.commands) != n_cmd:  # a control step: how far the host's pose is from the truth
                 n_cmd = len(host.commands)
+                n_moving = max(n_moving, len(getattr(host.ctrl, "tracked_moving", ())))
                 hp = host.localiser.pose_at(s.t_s) if host.localiser is not None else s.believed_pose()
                 if hp is not None and abs(s.plant.robot.speed_m_s) > 0.05:
                     loc_err = max(loc_err, math.hypot(hp.x_m - p.x_m, hp.y_m - p.y_m))
@@ -309,7 +318,7 @@ def run_sil(sc: Scenario, seed: int, *, localise: bool = True, tracks: bool = Fa
                        math.nan if hp is None else math.hypot(hp.x_m - p.x_m, hp.y_m - p.y_m),
                        math.nan if odo is None else math.hypot(odo.x_m - p.x_m, odo.y_m - p.y_m),
                        list(getattr(ctrl, "replan_times_s", [])), list(getattr(ctrl, "events", [])),
-                       0 if host.localiser is None else host.localiser.sighted)
+                       0 if host.localiser is None else host.localiser.sighted, list(getattr(ctrl, "replan_cpu_s", [])), n_moving)
     finally:
         s.close()
 
@@ -320,20 +329,21 @@ SIL_SCENARIOS = ("timed_static", "timed_dynamic", "timed_delay")
 def sil_section(seeds: list[int], odometry_only_seeds: int = 1) -> tuple[list[SilCase], list[SilCase]]:
     """Prints the firmware-in-the-loop tables; returns (localised runs, odometry-only runs)."""
     print("\n## Firmware in the loop (agnav_host.sil: native firmware, dead band, radio link; host on odometry + posts)\n")
+    print("Moving obstacles: the planner's tracker on the host's laser scans (placed with the host's believed pose).\n")
     print("| scenario | seed | host pose | arrived | arrival err s | final pos err m | final hdg err deg | pos err at T m "
-          "| host pose err max m (driving) | odometry drift at end m | min clearance m | collision | replans |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| host pose err max m (driving) | odometry drift at end m | min clearance m | collision | replans | moving tracks (max) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     loc: list[SilCase] = []
     odo: list[SilCase] = []
     for nm in SIL_SCENARIOS:
         sc = load_scenario(nm)
         runs = [(True, s) for s in seeds] + [(False, s) for s in seeds[:odometry_only_seeds]]
         for lz, s in runs:
-            r = run_sil(sc, s, localise=lz, tracks=bool(sc.world.movers))
+            r = run_sil(sc, s, localise=lz)
             (loc if lz else odo).append(r)
             print(f"| {nm} | {s} | {'odometry + posts' if r.localised else 'odometry only'} | {r.arrived} | {_fmt(r.arrival_err_s, 2)} | "
                   f"{r.final_pos_err_m:.3f} | {r.final_hdg_err_deg:.2f} | {_fmt(r.pos_err_at_T_m)} | {r.loc_err_max_m:.3f} | "
-                  f"{r.odo_drift_final_m:.3f} | {r.min_clearance_m:.3f} | {int(r.collided)} | {len(r.replan_times_s)} |")
+                  f"{r.odo_drift_final_m:.3f} | {r.min_clearance_m:.3f} | {int(r.collided)} | {len(r.replan_times_s)} | {r.moving_tracked_max} |")
     if loc:
         arr = [r for r in loc if r.arrival_err_s is not None]
         print(f"\nSIL, odometry + posts: runs {len(loc)}, arrived {len(arr)}, |arrival err| <= 0.2 s: "
@@ -342,6 +352,40 @@ def sil_section(seeds: list[int], odometry_only_seeds: int = 1) -> tuple[list[Si
               f"worst: arrival {_fmt(max((r.arrival_err_s for r in arr), key=abs) if arr else None, 2)} s, "
               f"pos {max(r.final_pos_err_m for r in loc):.3f} m, heading {max(r.final_hdg_err_deg for r in loc):.2f} deg")
     return loc, odo
+
+
+def fleet_section(seeds: list[int]) -> list[object]:
+    """Three robots through the SIL in one shared world (agnav_host.sil.fleet, scenario timed_fleet):
+    coordinated plans, and independent plans resolved only online. Prints the table; returns the
+    FleetResults."""
+    from agnav_host.sil.fleet import run_fleet
+
+    sc = load_scenario("timed_fleet")
+    print("\n## Three robots through the SIL in one world (one firmware, link and host each; timed_fleet)\n")
+    print("Each robot is a moving obstacle for the others' lasers and for the collision checks. \"coordinated\": plans made "
+          "conflict-free before the start (re-timing / deviation); \"online only\": independent plans, conflicts resolved "
+          "while driving from the peers' plans and the tracks.\n")
+    print("| seed | plans | conflicts before / after coordination | coordination | collisions | min robot gap m | arrival err s (R1, R2, R3) "
+          "| final pos err m (max) | final hdg err deg (max) | host pose err max m | replans |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    out = []
+    for s in seeds:
+        for coordinated in (True, False):
+            r = run_fleet(sc, s, coordinated=coordinated)
+            out.append(r)
+            print(f"| {s} | {'coordinated' if coordinated else 'online only'} | {r.conflicts_before} / {r.conflicts_after} | "
+                  f"{', '.join(f'{k}: {v}' for k, v in r.actions.items()) if coordinated else '-'} | {r.collisions} | {r.min_robot_gap_m:.3f} | "
+                  f"{', '.join(_fmt(o.arrival_err_s, 2) for o in r.robots)} | {max(o.final_pos_err_m for o in r.robots):.3f} | "
+                  f"{max(o.final_hdg_err_deg for o in r.robots):.2f} | {max(o.host_pose_err_max_m for o in r.robots):.3f} | "
+                  f"{sum(o.replans for o in r.robots)} |")
+    rob = [o for r in out for o in r.robots]  # type: ignore[attr-defined]
+    arr = [o for o in rob if o.arrival_err_s is not None]
+    print(f"\nSIL fleet: {len(out)} runs x 3 robots, collisions {sum(r.collisions for r in out)}, arrived {len(arr)}/{len(rob)}, "  # type: ignore[attr-defined]
+          f"|arrival err| <= 0.2 s: {sum(abs(o.arrival_err_s) <= 0.2 for o in arr)}, final pos err <= 0.05 m: "
+          f"{sum(o.final_pos_err_m <= 0.05 for o in rob)}, heading <= 2 deg: {sum(o.final_hdg_err_deg <= 2.0 for o in rob)}; "
+          f"worst arrival {_fmt(max((o.arrival_err_s for o in arr), key=abs) if arr else None, 2)} s, "
+          f"min robot gap {min(r.min_robot_gap_m for r in out):.3f} m")  # type: ignore[attr-defined]
+    return out
 
 
 MULTI_TOML = """
@@ -379,7 +423,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="skip the 100 m ref-003 case")
-    ap.add_argument("--sil", action="store_true", help="only the firmware-in-the-loop section (timed scenarios x seeds)")
+    ap.add_argument("--sil", action="store_true", help="only the firmware-in-the-loop sections (timed scenarios x seeds, fleet)")
+    ap.add_argument("--multi", action="store_true", help="with --sil: only the three-robot SIL fleet")
     ap.add_argument("--timing-repeats", type=int, default=3, help="runs of the single/multi cases for the replanning times")
     ns = ap.parse_args(argv)
     seeds = list(range(ns.seeds))
@@ -387,10 +432,15 @@ def main(argv: list[str] | None = None) -> int:
     if ns.sil:
         print(f"# timed planner benchmark, firmware in the loop ({platform.python_implementation()} {platform.python_version()}, "
               f"{platform.machine()}), seeds {seeds}")
-        loc, _ = sil_section(seeds, odometry_only_seeds=min(2, len(seeds)))
-        rt = np.array([x for r in loc for x in r.replan_times_s]) * 1e3
+        loc = [] if ns.multi else sil_section(seeds, odometry_only_seeds=min(2, len(seeds)))[0]
+        fleet = fleet_section(seeds)
+        rt = np.array([x for r in loc for x in r.replan_times_s] + [x for f in fleet for o in f.robots for x in o.replan_times_s]) * 1e3  # type: ignore[attr-defined]
+        ct = np.array([x for r in loc for x in r.replan_cpu_s] + [x for f in fleet for o in f.robots for x in o.replan_cpu_s]) * 1e3  # type: ignore[attr-defined]
         if len(rt):
-            print(f"\nSIL host replanning calls: {len(rt)}, wall median {np.median(rt):.3f} ms, max {rt.max():.3f} ms")
+            la = os.getloadavg()
+            print(f"\nSIL host replanning calls: {len(rt)}, wall median {np.median(rt):.3f} ms, p99 {_pct(rt, 99):.3f} ms, max {rt.max():.3f} ms; "
+                  f"CPU median {np.median(ct):.3f} ms, p99 {_pct(ct, 99):.3f} ms, max {ct.max():.3f} ms; "
+                  f"load average {la[0]:.1f} / {la[1]:.1f} / {la[2]:.1f}")
         print(f"wall time {time.time() - t_wall:.0f} s")
         return 0
     print(f"# timed planner benchmark ({platform.python_implementation()} {platform.python_version()}, {platform.machine()}), seeds {seeds}")
@@ -409,7 +459,8 @@ def main(argv: list[str] | None = None) -> int:
     cases: list[tuple[str, Scenario, dict[str, object]]] = [
         ("003 exp. case 1 straight 4 m / 20 s", parse_scenario(_straight_toml()), {}),
         ("timed_static (unknown boxes)", load_scenario("timed_static"), {}),
-        ("timed_dynamic (box + 2 walkers, tracks)", load_scenario("timed_dynamic"), {"tracks": True}),
+        ("timed_dynamic (box + 2 walkers, tracker on the scans)", load_scenario("timed_dynamic"), {}),
+        ("timed_dynamic, tracks from truth + noise instead", load_scenario("timed_dynamic"), {"tracks": True}),
         ("timed_delay (15 % slow car)", load_scenario("timed_delay"), {}),
         ("timed_delay + 2 s safety stop at 5 s", load_scenario("timed_delay"), {"safety_stop": (5.0, 7.0)}),
     ]
@@ -442,6 +493,7 @@ def main(argv: list[str] | None = None) -> int:
     results += multi_all
     try:
         sil_section(seeds)
+        fleet_section(seeds)
     except Exception as e:  # the SIL library may be mid-rebuild by another engineer
         print(f"\nSIL not usable here: {type(e).__name__}: {e}")
     repeats = [results]

@@ -202,12 +202,24 @@ static bool sonar_any_fault(const sonar_frame_t *f)
     return false;
 }
 
+/* Wheel travel in one control tick beyond this (10 m/s at 20 ms) is no wheel of an AgNav robot:
+ * a noisy or shorted encoder line. It is clamped before odometry (whose integration work grows
+ * with the distance: a 20 kHz storm of Hall pulses took 1.9 M cycles, 121 ms, per tick on the
+ * AVR and the watchdog reset the board) and reported to the health monitor as an encoder error. */
+#define ODOM_MAX_TICK_UM 200000L
+static uint8_t s_implausible; /* bit i: wheel i's travel was clamped this tick */
+
 static void update_odometry(void)
 {
     encoder_update(hal_time_us());
     encoder_motion_t m[ENCODER_MAX];
+    s_implausible = 0u;
     for (uint8_t i = 0; i < p_enc_count; i++) {
         encoder_motion(i, &m[i]);
+        if (m[i].delta_um > ODOM_MAX_TICK_UM || m[i].delta_um < -ODOM_MAX_TICK_UM) {
+            m[i].delta_um = m[i].delta_um > 0 ? ODOM_MAX_TICK_UM : -ODOM_MAX_TICK_UM;
+            s_implausible = (uint8_t)(s_implausible | (1u << i));
+        }
     }
     if (p_drive_kind == DRIVE_DIFFERENTIAL && p_enc_count >= 2u) {
         int32_t l_um = m[0].delta_um, r_um = m[1].delta_um;
@@ -235,7 +247,9 @@ static void update_odometry(void)
 static void check_encoders(uint32_t now_ms)
 {
     const drive_output_t *d = drive_output();
-    bool driving = s_out.speed_mm_s != 0 &&
+    /* Not in calibration mode (raw PWM): its sweep drives below the motion threshold on purpose. */
+    bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && link_state()->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
+    bool driving = !raw && s_out.speed_mm_s != 0 &&
                    (p_drive_kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
     uint16_t count[ENCODER_MAX], edges[ENCODER_MAX];
     for (uint8_t i = 0; i < p_enc_count && i < ENCODER_MAX; i++) {
@@ -244,7 +258,7 @@ static void check_encoders(uint32_t now_ms)
         count[i] = (uint16_t)snap.count;
         edges[i] = (uint16_t)snap.edges;
     }
-    health_encoders(now_ms, driving, count, edges, encoder_faults());
+    health_encoders(now_ms, driving, count, edges, (uint8_t)(encoder_faults() | s_implausible));
 }
 
 /* One STATUSTEXT per newly latched health bit, at most one per control tick (twelve sonars

@@ -1,7 +1,7 @@
 """Safety promises on the REAL ATmega2560 firmware under simavr (hil/simavr/avr_sil.c): with a
 signing key the control tick keeps its period (SHA-256 costs real cycles here), unsigned frames
-are refused, a watchdog reset read from MCUSR boots stopped, and an encoder interrupt storm at
-10 kHz does not starve the control task (20 kHz and more: see the xfail below).
+are refused, a watchdog reset read from MCUSR boots stopped, and an encoder interrupt storm of
+10 to 50 kHz neither starves the control task nor goes unreported.
 
 $AGNAV_AVR_ELF picks the ELF (default: the PlatformIO build, rebuilt when stale)."""
 
@@ -98,19 +98,22 @@ def test_watchdog_reset_from_mcusr_boots_stopped():
         assert st.failsafe_flags & D.AGNAV_FAILSAFE_WATCHDOG_RESET and st.reason == D.AGNAV_REASON_WATCHDOG_BOOT
 
 
-@pytest.mark.parametrize("period_us", [100, pytest.param(50, marks=pytest.mark.xfail(
-    strict=True, reason="legal quadrature edges at >= 20 kHz through sil_isr_burst end in watchdog resets under "
-                        "avr_sil, also on the firmware before the safety work (833e1d3); not yet explained"))])
-def test_encoder_interrupt_storm_keeps_the_control_tick(period_us):
+@pytest.mark.parametrize("period_us", [100, 50, 20])
+def test_encoder_interrupt_storm_keeps_the_control_tick_and_stops(period_us):
+    """Legal quadrature edges at 10, 20 and 50 kHz for 1 s (13.55 mm a count: far beyond any real
+    wheel). Before the odometry clamp in main.c, 20 kHz made one control tick take up to 121 ms
+    and the watchdog reset the board."""
     with Firmware(backend="avr", elf=os.environ.get("AGNAV_AVR_ELF") or None,
-                  params={"ENC_MODE": 0, "SONAR_COUNT": 0, "HLTH_EDGE_MAX": 0}) as fw:
+                  params={"ENC_MODE": 0, "SONAR_COUNT": 0}) as fw:
         fw.set_stop_on_trigger(False)
         host_run(fw, 200_000, codec(None))
         fw.kick_gap_max_us()
         n = 1_000_000 // period_us
-        assert fw.isr_burst(0, n, period_us) == n  # 1 s of quadrature edges
-        host_run(fw, 1_100_000, codec(None))
+        assert fw.isr_burst(0, n, period_us) == n
+        msgs = host_run(fw, 1_100_000, codec(None))
         gap = fw.kick_gap_max_us()
-        assert fw.reset_count == 0, f"{fw.reset_count} watchdog resets during a {1000 / period_us:.0f} kHz storm"
-        assert gap <= 25_000, f"control tick gap {gap} us during a {1000 / period_us:.0f} kHz edge storm"
-        print(f"{1000 / period_us:.0f} kHz encoder storm: worst control tick gap {gap} us")
+        khz = 1000 / period_us
+        assert fw.reset_count == 0, f"{fw.reset_count} watchdog resets during a {khz:.0f} kHz storm"
+        assert gap <= 25_000, f"control tick gap {gap} us during a {khz:.0f} kHz edge storm"
+        assert "health: encoder 0 illegal edges/storm, stop" in [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
+        print(f"{khz:.0f} kHz encoder storm: worst control tick gap {gap} us")

@@ -49,10 +49,9 @@ class Host:
             self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
             self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, 0, self.speed, 0, 0, D.AGNAV_DRIVE_PHYSICAL,
                                                              self.seq & 0xFFFF))
-            if self.wheel_edges:  # a turning wheel: Hall pulses every 10 ms (~1.4 m/s at 13.55 mm/pulse)
-                for k in range(5):
-                    t0 = self.fw.time_us + 2_000 + k * 10_000
-                    self.fw.queue_encoder_edges(0, [t0, t0 + 5_000], [2, 0])
+            if self.wheel_edges:  # a turning wheel: A/B in quadrature order (Hall mode counts A's rises)
+                t0 = self.fw.time_us + 1_000
+                self.fw.queue_encoder_edges(0, [t0 + k * 2_500 for k in range(20)], [0b10, 0b11, 0b01, 0b00] * 5)
             while self.fw.time_us < t:
                 self.fw.step_to(t)
                 for idx, tt in self.fw.take_triggers():
@@ -105,7 +104,7 @@ def test_sonar_fault_is_detected_reported_once_and_stops_until_armed(mode, shift
         said = [t for t in texts(msgs) if word in t]
         assert said == [f"health: sonar 3 {word}, stop"], texts(msgs)
         stops = [m for m in msgs if m.get_type() == "AGNAV_BEHAVIOUR_STATUS" and m.active_layer == D.AGNAV_LAYER_FAILSAFE]
-        assert stops[0].time_boot_ms * 1000 - t_fault <= 1_300_000, "detected within 10 ring frames + a tick"
+        assert stops[0].time_boot_ms * 1000 - t_fault <= 1_000_000, "stopped within 1 s"
         fw.fault_sonar(3, "none")  # the sensor recovers: the latch holds until the host arms
         h.run(1_000_000)
         assert not driving(fw), "a latched sensor fault must wait for the host"
@@ -139,7 +138,7 @@ def test_encoder_without_counts_while_driving_stops(mode):
         assert "health: encoder 0 no counts while driving, stop" in texts(msgs)
         first = next(m for m in msgs if m.get_type() == "AGNAV_BEHAVIOUR_STATUS" and m.active_layer == D.AGNAV_LAYER_FAILSAFE)
         dt_ms = first.time_boot_ms - t_fault / 1000
-        assert 1000 <= dt_ms <= 1100, f"stopped {dt_ms:.0f} ms after the fault (HLTH_ENC_MS = 1000)"
+        assert 500 <= dt_ms <= 600, f"stopped {dt_ms:.0f} ms after the fault (HLTH_ENC_MS = 500)"
 
 
 def test_encoder_noise_storm_stops():
@@ -251,3 +250,22 @@ def test_fault_hooks_reject_bad_indices():
             fw.fault_sonar(12, "zero")
         assert fw.eeprom_record("signing") == (0x40, 36)
         assert fw.eeprom_record("calib") == (0x100, 212)
+
+
+def test_calibration_sweep_below_the_motion_threshold_is_not_a_stuck_encoder():
+    """Raw-PWM (calibration) mode drives the ESC below the point where the car moves, on purpose:
+    no counts then is the measurement, not a fault."""
+    with Firmware(NO_SONAR) as fw:
+        h = Host(fw)
+        h.wheel_edges = False
+        end = fw.time_us + 2_000_000
+        seq = 0
+        while fw.time_us < end:
+            seq += 1
+            h.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+            h.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, 0, 1, 90, 140, D.AGNAV_DRIVE_RAW_PWM, seq))
+            fw.step_to(fw.time_us + 50_000)
+            h.msgs += decode(fw.uart_read())
+        assert driving(fw), "raw PWM reaches the ESC"
+        assert max(health_values(h.msgs)) == 0
+        assert not any("health:" in t for t in texts(h.msgs))

@@ -116,3 +116,12 @@ def test_him_visited_cells_make_a_tried_escape_point_dearer():
     assert cost[1] == 0.0
     p.reset()
     assert np.all(p._visit_cost(obs, pts) == 0.0)
+
+
+def test_him_holds_its_escape_point_while_turning_towards_it():
+    p = HimPlanner(SPEC)
+    scan = scan_from_segments([(1.0, -1.0, 1.0, 1.0)])  # wall ahead: no direct path
+    p.subgoal_world = (-1.0, 1.5)  # behind-left, chosen earlier
+    cmd = p.step(obs_with(scan, (4.0, 0.0)))
+    assert p.subgoal_world == (-1.0, 1.5)
+    assert cmd.speed_m_s == 0.0 and cmd.yaw_rate_rad_s > 0.0  # turning left on the spot towards it

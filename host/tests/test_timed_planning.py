@@ -193,3 +193,40 @@ def test_perception_tracks_are_adapted():
     assert (m.x_m, m.y_m, m.vx_m_s, m.vy_m_s, m.radius_m, m.speed_sigma_m_s) == (2.0, 1.0, 0.5, -0.2, 0.3, 0.12)
     assert m.pos_sigma_m == pytest.approx(0.05) and m.stamp_s == 4.0
     assert MovingObstacle.from_any((1, 2, 0, 0, 0.25)).speed_sigma_m_s == 0.1
+
+
+def test_planner_tracks_walkers_from_its_scans_and_leaves_a_peer_robot_to_its_plan():
+    from agnav_host.sim.sensors import Laser2D, laser_preset
+    from agnav_host.sim.world import Mover, World
+    from agnav_host.types import Goal, Observation, Pose2D
+
+    # a walker crossing 3 m ahead of a car that waits for its start time; a static post beside it
+    w = World(movers=[Mover(0.25, 0.6, ((3.0, -2.0), (3.0, 2.0)), loop=False)])
+    w.add_circles(np.array([[2.0, 1.5, 0.08]]))
+    las = Laser2D(laser_preset("tim310"))
+    rng = np.random.default_rng(0)
+    goal = Goal(8.0, 0.0, 0.0, 30.0, 0.05)
+
+    def run(extras):
+        pl = TimedPlanner()
+        pl.reset()
+        for k in range(40):  # 2 s at 20 Hz
+            t = k / 20.0
+            pl.step(Observation(t, Pose2D(), 0.0, 0.0, goal, las.scan(w, Pose2D(), t, rng), None, dict(extras)))
+        return pl
+
+    pl = run({})
+    assert len(pl.tracked_moving) == 1  # the walker, not the post
+    m = pl.tracked_moving[0]
+    wx, wy = w.movers[0].position(39 / 20.0)
+    assert (m.x_m, m.y_m) == pytest.approx((wx, wy), abs=0.15)
+    assert (m.vx_m_s, m.vy_m_s) == pytest.approx((0.0, 0.6), abs=0.15)
+    # given tracks replace the tracker
+    assert run({"tracks": []}).tracked_moving == []
+    # a peer robot's plan that puts it where the track is: the track is that robot
+    from agnav_host.planning.timed.planner import _is_peer
+    from agnav_host.planning.timed import MovingObstacle, PlanObstacle
+    peer = plan_timed(BoundaryState(3.0, -2.0, math.pi / 2), BoundaryState(3.0, 2.0, math.pi / 2), 0.0, 4.0 / 0.6, TimedLimits())
+    mo = MovingObstacle.from_any(m, 39 / 20.0)
+    assert _is_peer(mo, [PlanObstacle(peer, 0.16)], 39 / 20.0, 0.5)
+    assert not _is_peer(mo, [PlanObstacle(peer, 0.16)], 0.0, 0.5)

@@ -2,7 +2,7 @@
 
 #include <string.h>
 
-const health_params_t HEALTH_PARAMS_DEFAULT = {1000u, 2000u, 3u, 10u};
+const health_params_t HEALTH_PARAMS_DEFAULT = {500u, 2000u, 3u, 4u};
 
 static struct {
     health_params_t p;

@@ -48,10 +48,12 @@ extern "C" {
 #define HEALTH_SONAR_MASK 0xFFFFFF00UL
 
 typedef struct {
-    uint16_t enc_stuck_ms;      /* 1000: driving without counts this long -> stuck; 0 off */
+    uint16_t enc_stuck_ms;      /* 500: driving without counts this long -> stuck; 0 off (the ref 003
+                                 * car's slowest motion, 435 mm/s, gives a Hall pulse every 31 ms) */
     uint16_t enc_edges_max;     /* 2000: edges of one wheel in one control tick above this -> error; 0 off */
     uint8_t sonar_fault_frames; /* 3: consecutive FAULT frames of one sensor -> timeout; 0 off */
-    uint8_t sonar_zero_frames;  /* 10: consecutive frames closer than 20 mm -> zero; 0 off */
+    uint8_t sonar_zero_frames;  /* 4: consecutive frames closer than 20 mm -> zero; 0 off (with the
+                                 * 3-sample median the fault latches ~0.5 s after it starts) */
 } health_params_t;
 
 extern const health_params_t HEALTH_PARAMS_DEFAULT;

@@ -157,6 +157,19 @@ static bool addressed(uint8_t target_system, uint8_t target_component, bool broa
     return true;
 }
 
+/* A message that must be addressed to this robot (motion, configuration, keys): broadcast is
+ * refused with one STATUSTEXT, another robot's message ignored. */
+static bool for_robot(uint8_t target_system, uint8_t target_component, uint32_t now_ms)
+{
+    if (addressed(target_system, target_component, false)) {
+        return true;
+    }
+    if (target_system == 0u && (target_component == 0u || target_component == s_cfg.compid)) {
+        refuse(LINK_TEXT("refused: broadcast, address the robot"), now_ms);
+    }
+    return false;
+}
+
 /* 0 or 1 exactly (flags and switches). */
 static bool is_bool(float f) { return f == 0.0f || f == 1.0f; }
 
@@ -253,16 +266,13 @@ static void handle_setup_signing(const mavlink_message_t *m, uint32_t now_ms)
 {
     mavlink_setup_signing_t ss;
     mavlink_msg_setup_signing_decode(m, &ss);
-    if (!addressed(ss.target_system, ss.target_component, false)) {
-        if (ss.target_system == 0u) {
-            refuse(LINK_TEXT("SETUP_SIGNING: broadcast, refused"), now_ms);
-        }
+    if (!for_robot(ss.target_system, ss.target_component, now_ms)) {
         return;
     }
     bool verified = signing_state() == SIGNING_ON && (m->incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
     bool window = s_provision_until_ms != 0u && (int32_t)(s_provision_until_ms - now_ms) > 0;
     if (!verified && !window) {
-        refuse(LINK_TEXT("SETUP_SIGNING: not signed with the current key, refused"), now_ms);
+        refuse(LINK_TEXT("refused SETUP_SIGNING: not signed with the key"), now_ms);
         return;
     }
     signing_set_key(ss.secret_key, ss.initial_timestamp);
@@ -277,16 +287,13 @@ static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
 {
     mavlink_param_set_t ps;
     mavlink_msg_param_set_decode(m, &ps);
-    if (!addressed(ps.target_system, ps.target_component, false)) {
-        if (ps.target_system == 0u) {
-            refuse(LINK_TEXT("PARAM_SET: broadcast, refused"), now_ms);
-        }
+    if (!for_robot(ps.target_system, ps.target_component, now_ms)) {
         return;
     }
     int16_t idx = params_find(ps.param_id);
     if (idx < 0) {
         count(&s_state.rx_refused);
-        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: unknown parameter"));
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("refused PARAM_SET: unknown parameter"));
         return;
     }
     /* Outside +-2^24 a float no longer holds every integer and the int32 cast could overflow. */
@@ -295,9 +302,9 @@ static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
     if (!ok || params_set((uint16_t)idx, v) != PARAMS_OK) {
         count(&s_state.rx_refused);
         if (ok) {
-            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: value out of range, refused"));
+            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("refused PARAM_SET: out of range"));
         } else {
-            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("PARAM_SET: value not finite, refused"));
+            link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("refused PARAM_SET: not finite"));
         }
     }
     send_param((uint16_t)idx); /* the current value either way, as the protocol asks */
@@ -316,10 +323,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT: {
         mavlink_agnav_drive_setpoint_t sp;
         mavlink_msg_agnav_drive_setpoint_decode(m, &sp);
-        if (!addressed(sp.target_system, sp.target_component, false)) {
-            if (sp.target_system == 0u) {
-                refuse(LINK_TEXT("SETPOINT: broadcast, refused"), now_ms);
-            }
+        if (!for_robot(sp.target_system, sp.target_component, now_ms)) {
             break;
         }
         bool ok = sp.mode <= AGNAV_DRIVE_RAW_PWM && sp.steer_cdeg >= -SETPOINT_STEER_LIMIT_CDEG &&
@@ -328,7 +332,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
                   (sp.mode != AGNAV_DRIVE_RAW_PWM || (sp.steer_pwm <= RAW_PWM_LIMIT && sp.speed_pwm <= RAW_PWM_LIMIT));
         if (!ok) {
             s_state.setpoint.valid = false;
-            refuse(LINK_TEXT("SETPOINT: mode or value out of range, refused (stop)"), now_ms);
+            refuse(LINK_TEXT("refused SETPOINT: out of range, stop"), now_ms);
             break;
         }
         s_state.setpoint.steer_cdeg = sp.steer_cdeg;
@@ -346,10 +350,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_RC_CHANNELS_OVERRIDE: {
         mavlink_rc_channels_override_t rc;
         mavlink_msg_rc_channels_override_decode(m, &rc);
-        if (!addressed(rc.target_system, rc.target_component, false)) {
-            if (rc.target_system == 0u) {
-                refuse(LINK_TEXT("RC_OVERRIDE: broadcast, refused"), now_ms);
-            }
+        if (!for_robot(rc.target_system, rc.target_component, now_ms)) {
             break;
         }
         bool rel1 = rc.chan1_raw == 0u || rc.chan1_raw == UINT16_MAX;
@@ -357,7 +358,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
         if ((!rel1 && (rc.chan1_raw < RC_VALID_MIN_US || rc.chan1_raw > RC_VALID_MAX_US)) ||
             (!rel3 && (rc.chan3_raw < RC_VALID_MIN_US || rc.chan3_raw > RC_VALID_MAX_US))) {
             s_state.manual.valid = false;
-            refuse(LINK_TEXT("RC_OVERRIDE: pulse outside 800..2200 us, refused (stop)"), now_ms);
+            refuse(LINK_TEXT("refused RC: pulse not 800..2200 us, stop"), now_ms);
             break;
         }
         /* Channel 1 is roll/steering (right stick right = turn right = negative), channel 3 throttle. */
@@ -372,12 +373,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_MANUAL_CONTROL: {
         mavlink_manual_control_t mc;
         mavlink_msg_manual_control_decode(m, &mc);
-        if (mc.target != s_cfg.sysid) {
-            if (mc.target == 0u) {
-                refuse(LINK_TEXT("MANUAL_CONTROL: broadcast, refused"), now_ms);
-            } else {
-                count(&s_state.rx_other_target);
-            }
+        if (!for_robot(mc.target, 0u, now_ms)) {
             break;
         }
         /* x: forward stick -1000..1000; r: yaw stick, positive = clockwise = right.
@@ -386,7 +382,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
         int16_t r = mc.r == INT16_MAX ? 0 : mc.r;
         if (x < -1000 || x > 1000 || r < -1000 || r > 1000) {
             s_state.manual.valid = false;
-            refuse(LINK_TEXT("MANUAL_CONTROL: axis outside -1000..1000, refused (stop)"), now_ms);
+            refuse(LINK_TEXT("refused MANUAL: axis not +-1000, stop"), now_ms);
             break;
         }
         s_state.manual.speed_mm_s = (int16_t)(((int32_t)x * s_cfg.manual_max_speed_mm_s) / 1000);
@@ -400,17 +396,14 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     case MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED: {
         mavlink_set_position_target_local_ned_t t;
         mavlink_msg_set_position_target_local_ned_decode(m, &t);
-        if (!addressed(t.target_system, t.target_component, false)) {
-            if (t.target_system == 0u) {
-                refuse(LINK_TEXT("GOAL: broadcast, refused"), now_ms);
-            }
+        if (!for_robot(t.target_system, t.target_component, now_ms)) {
             break;
         }
         /* Position only, in the local frame: x and y must be used (type_mask bits 0, 1 clear). */
         if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || !is_finite_f(t.x) ||
             !is_finite_f(t.y) || t.x > GOAL_LIMIT_M || t.x < -GOAL_LIMIT_M || t.y > GOAL_LIMIT_M || t.y < -GOAL_LIMIT_M) {
             s_state.goal.active = false;
-            refuse(LINK_TEXT("GOAL: frame, mask, NaN or beyond 10 km, refused (goal dropped)"), now_ms);
+            refuse(LINK_TEXT("refused GOAL: frame/mask/NaN/10 km, dropped"), now_ms);
             break;
         }
         s_state.goal.x_mm = (int32_t)(t.x * 1000.0f);
@@ -437,7 +430,7 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
         if (idx >= 0 && (uint16_t)idx < params_count()) {
             send_param((uint16_t)idx);
         } else {
-            refuse(LINK_TEXT("PARAM_REQUEST_READ: unknown parameter"), now_ms);
+            refuse(LINK_TEXT("refused PARAM_READ: unknown parameter"), now_ms);
         }
         break;
     }

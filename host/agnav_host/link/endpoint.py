@@ -25,7 +25,8 @@ warning is raised when it exceeds the telemetry budget (1500 B/s: ~26 % of a 576
 which carries 5760 B/s at 10 bits per byte).
 
 Signing (MAVLink 2): with ``key`` set every outgoing frame is signed; incoming unsigned frames are
-accepted unless ``require_signed`` (the AgNav firmware does not sign its telemetry).
+accepted unless ``require_signed`` (an AgNav firmware holding the key signs all its telemetry, so
+``require_signed`` suits it; keys.py tells how the robot gets the key).
 """
 
 from __future__ import annotations

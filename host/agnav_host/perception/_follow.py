@@ -269,6 +269,7 @@ class ProximityFollowerParams:
     trim_m: float = 0.1
     gate_m: float = 0.3
     curvature_filter_m: float = 1.0
+    smooth_cutoff_m: float = 0.0
     meas_std_m: float = 0.02
     meas_std_rad: float = 0.03
     process_std_m: float = 0.01
@@ -348,6 +349,8 @@ class _RowFaceMap:
         ok = n > 0
         bx = np.bincount(b, rx)[ok] / n[ok]
         by = np.bincount(b, ry)[ok] / n[ok]
+        if p.smooth_cutoff_m > 0 and np.ptp(bx) > 2.0:
+            return self._fit_smooth(bx, by, n[ok])
         deg = p.fit_degree if np.ptp(bx) > 2.0 else min(p.fit_degree, 1)
         keep = np.ones(len(bx), dtype=bool)
         coef = None
@@ -361,6 +364,40 @@ class _RowFaceMap:
         a0 = float(coef[0])
         b1 = float(coef[1]) if deg >= 1 else 0.0
         c2 = float(coef[2]) if deg >= 2 else 0.0
+        nk = int(keep.sum())
+        span = float(np.ptp(bx[keep])) if nk else 0.0
+        conf = min(1.0, nk / 20.0) * min(1.0, span / 2.0)
+        return SingleRowEstimate(a0 * math.cos(math.atan(b1)), -math.atan(b1), 2.0 * c2 / (1.0 + b1 * b1) ** 1.5, conf, nk)
+
+
+    def _fit_smooth(self, bx: FloatArray, by: FloatArray, counts: FloatArray) -> SingleRowEstimate | None:
+        """The face as a smooth curve on the bin grid (a third-difference Whittaker smoother: a row bends
+        over many metres, its bushes stand out over one or two); offset, heading and curvature at x = 0."""
+        p = self.p
+        h = p.bin_m
+        m = int(round((p.window_back_m + p.window_ahead_m) / h)) + 1
+        grid = -p.window_back_m + h * np.arange(m)
+        idx = np.clip(np.round((bx + p.window_back_m) / h).astype(int), 0, m - 1)
+        lam = (p.smooth_cutoff_m / (2.0 * math.pi * h)) ** 6
+        D = np.diff(np.eye(m), 3, axis=0)
+        P = lam * (D.T @ D)
+        keep = np.ones(len(bx), dtype=bool)
+        f = None
+        for _ in range(3):
+            if keep.sum() < 10:
+                return None
+            w = np.zeros(m)
+            z = np.zeros(m)
+            np.add.at(w, idx[keep], 1.0)
+            np.add.at(z, idx[keep], by[keep])
+            f = np.linalg.solve(np.diag(w) + P, z)
+            keep = np.abs(by - f[idx]) < p.trim_m
+        assert f is not None
+        i0 = int(round(p.window_back_m / h))
+        near = slice(max(0, i0 - 10), min(m, i0 + 11))  # a quadratic through the curve over +-1 m
+        a0, b1, c2 = (float(v) for v in np.polynomial.polynomial.polyfit(grid[near], f[near], 2))
+        # the fitted curve stands in for the polynomial when gating the next scan's points
+        self.coef, self.fit_pose = np.polynomial.polynomial.polyfit(grid, f, 3), self.pose.copy()
         nk = int(keep.sum())
         span = float(np.ptp(bx[keep])) if nk else 0.0
         conf = min(1.0, nk / 20.0) * min(1.0, span / 2.0)

@@ -8,6 +8,18 @@ a round object, so the plain mean of its points sits in front of the centre).
 Tracks are constant-velocity Kalman filters in the world frame (state x, y, vx, vy), associated to
 clusters by nearest neighbour within a Mahalanobis gate. :class:`Track` is the small typed record the
 planners consume.
+
+Static or moving: from a moving robot the centre of a static object wanders (another face comes into
+view, the object slides out of the laser's range), which gives it a spurious velocity. Two rules keep
+such objects static: a cluster with a return near the end of the laser's range is cut by the range
+or the first or last beams of the scan, or next to a beam that hit something well in front of it
+(partly hidden), is cut and is not used at all (a wall leaving the range, a box leaving the field of
+view, a walker coming out from behind a post would "move" with the robot or too fast), and a track is moving
+only when its speed is well above its uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` from
+where it was first seen. Through an occlusion (a walker behind a box) a track coasts on its velocity
+for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate.
+Two objects seen as one cluster (a walker passing a box) would drag both tracks: with
+``max_grow_m`` a confirmed track does not take a cluster much larger than itself and coasts instead.
 """
 
 from __future__ import annotations
@@ -16,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..types import FloatArray, LaserScan, Pose2D, ScanXY
 from ._scan import ScanParams, points_from_scan
@@ -31,18 +44,24 @@ class Cluster:
     y_m: float
     radius_m: float
     n_points: int
+    cut: bool = False  # near the end of the laser's range or field of view, or partly hidden: the object may extend beyond what was seen
 
 
 def cluster_points(xy: ScanXY, sensor_xy: tuple[float, float] = (0.0, 0.0), gap_m: float = 0.2,
-                   min_points: int = 2, max_radius_m: float = 1.5) -> list[Cluster]:
+                   min_points: int = 2, max_radius_m: float = 1.5, range_max_m: float = math.inf,
+                   range_edge_m: float = 0.15, at_view_edge: npt.NDArray[np.bool_] | None = None) -> list[Cluster]:
     """Split beam-ordered points (k, 2) into clusters (module docstring); clusters with fewer than
-    ``min_points`` points or a radius above ``max_radius_m`` (walls, rows) are dropped."""
+    ``min_points`` points or a radius above ``max_radius_m`` (walls, rows) are dropped. A cluster with
+    a point farther than ``range_max_m - range_edge_m`` from the sensor, or one of the points marked in
+    ``at_view_edge`` (k,) (the first and last beams of a scan, beams beside a nearer return), is
+    flagged ``cut``."""
     if len(xy) == 0:
         return []
     d = np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1]))
     cuts = np.flatnonzero(d > gap_m) + 1
+    edge = np.zeros(len(xy), dtype=bool) if at_view_edge is None else np.asarray(at_view_edge, dtype=bool)
     out = []
-    for part in np.split(xy, cuts):
+    for part, part_edge in zip(np.split(xy, cuts), np.split(edge, cuts)):
         if len(part) < min_points:
             continue
         r = 0.5 * float(np.hypot(*(part[-1] - part[0])))
@@ -52,9 +71,10 @@ def cluster_points(xy: ScanXY, sensor_xy: tuple[float, float] = (0.0, 0.0), gap_
         m = part.mean(axis=0)
         u = m - np.asarray(sensor_xy)
         nu = float(np.hypot(*u))
-        near = float(np.min(np.hypot(part[:, 0] - sensor_xy[0], part[:, 1] - sensor_xy[1])))
+        rng = np.hypot(part[:, 0] - sensor_xy[0], part[:, 1] - sensor_xy[1])
+        near = float(np.min(rng))
         c = np.asarray(sensor_xy) + (near + r) / nu * u if nu > 1e-9 else m
-        out.append(Cluster(float(c[0]), float(c[1]), r, len(part)))
+        out.append(Cluster(float(c[0]), float(c[1]), r, len(part), bool(float(np.max(rng)) > range_max_m - range_edge_m or part_edge.any())))
     return out
 
 
@@ -63,7 +83,15 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
     """Clusters of a scan, in the world frame when the scan carries its pose (and ``world``), else the sensor frame."""
     pose = scan.pose if (world and scan.pose is not None) else Pose2D()
     pts = points_from_scan(scan, pose, ScanParams())
-    return cluster_points(pts.xy, (pose.x_m, pose.y_m), gap_m, min_points, max_radius_m)
+    n = len(scan.ranges_m)
+    at_edge = (pts.index <= 1) | (pts.index >= n - 2)
+    # a neighbouring beam returned from well in front: the object is partly hidden behind another
+    r = np.where(np.isfinite(scan.ranges_m) & (scan.ranges_m > 0), scan.ranges_m, np.inf)
+    rp = np.concatenate(([np.inf], r, [np.inf]))
+    near_nb = np.minimum(rp[pts.index], rp[pts.index + 2])
+    at_edge |= near_nb < pts.ranges_m - 0.3
+    return cluster_points(pts.xy, (pose.x_m, pose.y_m), gap_m, min_points, max_radius_m, scan.range_max_m,
+                          at_view_edge=at_edge)
 
 
 @dataclass(frozen=True)
@@ -81,6 +109,10 @@ class Track:
     covariance: tuple[tuple[float, ...], ...]
     age_s: float
     hits: int
+    travel_m: float = math.inf  # farthest the estimate has been from where the object was first seen
+    unseen_s: float = 0.0  # time since the last scan that saw it (> 0: coasting on its velocity)
+
+    MIN_TRAVEL_M = 0.3  # a moving object has gone at least this far from where it was first seen
 
     @property
     def speed_m_s(self) -> float:
@@ -88,8 +120,9 @@ class Track:
 
     @property
     def moving(self) -> bool:
-        """Speed more than twice its uncertainty and above 0.1 m/s."""
-        return self.speed_m_s > max(0.1, 2.0 * self.speed_sigma_m_s)
+        """Speed more than twice its uncertainty and above 0.1 m/s, and ``MIN_TRAVEL_M`` travelled
+        (module docstring)."""
+        return self.speed_m_s > max(0.1, 2.0 * self.speed_sigma_m_s) and self.travel_m >= self.MIN_TRAVEL_M
 
 
 @dataclass(frozen=True)
@@ -102,6 +135,12 @@ class TrackerParams:
     confirm_hits: int = 3
     cluster_gap_m: float = 0.2
     max_radius_m: float = 1.0
+    # > 0: a track is kept this long after it was last seen, however many scans missed it (occlusions);
+    # max_misses applies only to tracks not yet confirmed
+    max_coast_s: float = 0.0
+    # a confirmed track does not take a cluster this much larger than itself: two objects seen as one
+    # (a walker passing a box) would drag the track between them
+    max_grow_m: float = math.inf
 
 
 class _KF:
@@ -110,6 +149,7 @@ class _KF:
         self.P = np.diag([meas_std**2, meas_std**2, 1.0, 1.0])
         self.r, self.t0, self.t, self.id = r, t, t, tid
         self.hits, self.misses = 1, 0
+        self.x0, self.y0, self.travel, self.t_seen = x, y, 0.0, t
 
     def predict(self, t: float, q: float) -> None:
         dt = max(0.0, t - self.t)
@@ -130,6 +170,8 @@ class _KF:
         self.r = 0.7 * self.r + 0.3 * r
         self.hits += 1
         self.misses = 0
+        self.t_seen = self.t
+        self.travel = max(self.travel, math.hypot(self.x[0] - self.x0, self.x[1] - self.y0))
 
 
 class ObstacleTracker:
@@ -147,7 +189,7 @@ class ObstacleTracker:
         p = self.params
         t = scan.stamp_s if t_s is None else t_s
         cl = clusters_from_scan(scan, p.cluster_gap_m, 2, p.max_radius_m)
-        return self.update_clusters(cl, t)
+        return self.update_clusters([c for c in cl if not c.cut], t)
 
     def update_clusters(self, clusters: list[Cluster], t_s: float) -> list[Track]:
         p = self.params
@@ -164,6 +206,8 @@ class ObstacleTracker:
                 dz = np.array([c.x_m, c.y_m]) - tr.x[:2]
                 if float(np.hypot(*dz)) > p.max_gate_m:
                     continue
+                if tr.hits >= p.confirm_hits and c.radius_m > tr.r + p.max_grow_m:
+                    continue
                 m2 = float(dz @ Si @ dz)
                 if m2 <= p.gate_sigma**2:
                     pairs.append((m2, i, j))
@@ -178,7 +222,11 @@ class ObstacleTracker:
         for i, tr in enumerate(self._tracks):
             if i not in done_t:
                 tr.misses += 1
-        self._tracks = [tr for tr in self._tracks if tr.misses <= p.max_misses]
+        if p.max_coast_s > 0:
+            self._tracks = [tr for tr in self._tracks if (tr.misses <= p.max_misses if tr.hits < p.confirm_hits
+                                                          else t_s - tr.t_seen <= p.max_coast_s)]
+        else:
+            self._tracks = [tr for tr in self._tracks if tr.misses <= p.max_misses]
         for j, c in enumerate(clusters):
             if j not in used:
                 self._tracks.append(_KF(c.x_m, c.y_m, c.radius_m, t_s, self._next, p.meas_std_m))
@@ -197,5 +245,6 @@ class ObstacleTracker:
             u = v / sp if sp > 1e-6 else np.array([1.0, 0.0])
             sig = math.sqrt(max(float(u @ P[2:, 2:] @ u), 0.0)) if sp > 1e-6 else math.sqrt(max(float(np.trace(P[2:, 2:])) / 2, 0.0))
             out.append(Track(tr.id, float(tr.x[0]), float(tr.x[1]), float(v[0]), float(v[1]), float(tr.r), sig,
-                             tuple(tuple(float(a) for a in row) for row in P), tr.t - tr.t0, tr.hits))
+                             tuple(tuple(float(a) for a in row) for row in P), tr.t - tr.t0, tr.hits, tr.travel,
+                             tr.t - tr.t_seen))
         return out

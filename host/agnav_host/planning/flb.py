@@ -4,12 +4,34 @@ Inputs are the smallest laser ranges in three 60 deg sectors (right -90..-30, fr
 30..90 deg, ref 000 eq. 1), turned into clearances normalised by the robot radius and mapped to
 Close / Medium / Far. The 27 rules of table 3-I give a heading change and a speed class
 (Stop / 0.2 Vmax / Vmax); product inference, centre-of-largest-area defuzzification with the
-threshold ``trsh`` (0.3 for cluttered scenes, 0.6 for simple ones, ref 000 sec. 3.4). The heading
-change becomes a yaw rate ``dphi / turn_time_s``.
+threshold ``trsh`` (0.3 for cluttered scenes, 0.6 for simple ones, ref 000 sec. 3.4).
 
-One addition: rules 4 and 7 (Close on both sides) stop without turning, which never ends in a
-passage narrower than the Close band; after ``stall_s`` in that state the robot creeps ahead when
-the straight path is free.
+How the output is executed (ref 000 gives the heading change and the speed, not how a drive
+follows them; these are ours, on engineering grounds):
+
+* The heading change is a change of direction of travel, so while the robot moves it is spread
+  over a stretch of path ``L`` (curvature ``dphi / L``, yaw rate ``v dphi / L``), as a steered
+  vehicle executes it. ``L`` is ``steer_distance_m`` (0.4 m, about the robot's size), shortened to
+  the front clearance (the turn has to be done before the obstacle ahead), never below
+  ``min_steer_distance_m``. At a stop (the STOP rules) the change is turned on the spot in
+  ``turn_time_s``; between a stop and the SLOW speed the two blend linearly. A fixed time constant
+  (``dphi / 0.7 s``, the first implementation) makes the curvature ``dphi / (0.7 v)``: at the SLOW
+  speed of 0.2 Vmax every 30 deg set became a turn of 0.27 m radius, which is where FLB's bending
+  energy came from.
+* CLA with hysteresis: the area holding the previous output counts ``1 + keep_bonus`` times, so two
+  nearly equal areas do not take turns from one control step to the next.
+* GOAL with the front not Far turns at least one set to the goal's side; while the goal is within
+  ``ahead_rad`` of the nose that side is held from the previous step (first time: the more open
+  side), otherwise the side flips with each wobble of the heading and the robot drives straight
+  into the obstacle.
+* Blind-spot guard: a laser mounted ahead of the centre does not see beside the body. Near returns
+  are remembered for ``memory_s`` / ``memory_distance_m`` of travel; when one of them, now behind
+  the laser's mounting line, is within ``side_margin_m`` of the body on the side of the turn, the
+  turn is not made while driving (straight on, or on the spot when the front is near). The rules
+  themselves see only the current scan, as in ref 000.
+* Rules 4 and 7 (Close on both sides) stop without turning, which never ends in a passage narrower
+  than the Close band; after ``stall_s`` in that state the robot creeps ahead when the straight
+  path is free.
 """
 
 from __future__ import annotations

@@ -12,18 +12,23 @@
    soon as the direct path opens, repeat. The chosen point is held in the world frame and only
    replaced when it becomes unreachable or another is shorter by ``switch_gain_m``.
 
-Two additions for dead ends (ref 000 tests none). A wider polar grid: the laser covers 180-270 deg,
-so returns seen in the last ``memory_s`` within ``memory_radius_m`` are kept in the odometry frame
-(one per ``memory_cell_m`` cell), and once the robot is trapped (it has spent ``trapped_s`` around
-its current cell) those now outside the laser's field of view fill the grid's blind sector; without
-them an escape point behind the robot always looks free, and the robot turns to and fro between one
-ahead and one behind. The grid's cells and the full-resolution returns both count as obstacles in
-the straight-line test (a wall seen at a grazing angle leaves cells farther apart than the body is
-wide). And a memory of visited cells. The time the robot has
-spent in each ``cell_m`` cell of the odometry frame is counted, and an escape point in (or next to)
-a cell already visited costs ``visit_gain_m_s`` metres per second spent there on top of D_i, so a
-robot that has tried the bottom of a dead end or dithers in front of a wall tip picks, after a
-while, an escape point it has not tried yet. D_i is otherwise unchanged.
+Additions for dead ends (ref 000 tests none; D_i itself is unchanged):
+
+* Visited cells: the time spent in each ``cell_m`` cell of the odometry frame is counted; an escape
+  point in (or next to) a visited cell costs ``visit_gain_m_s`` metres per second spent there on
+  top of D_i (at most ``visit_cap_m``), so a robot that has tried the bottom of a dead end, or
+  dithers in front of a wall tip, picks an escape point it has not tried yet.
+* A wider polar grid when trapped: the laser covers 180-270 deg, so returns within
+  ``memory_radius_m`` are kept in the odometry frame for ``memory_s`` (one per ``memory_cell_m``
+  cell); once the robot has spent ``trapped_s`` around its current cell, those now outside the
+  laser's field of view fill the grid's blind sector. Without them an escape point behind the robot
+  always looks free, and the robot turns to and fro between one ahead and one behind.
+* The straight-line test uses every return, not only the grid's cells (a wall seen at a grazing
+  angle leaves cells farther apart than the body is wide), and a return the body already grazes
+  does not block moving off it (:func:`departing_free_m`).
+* The escape point is held, without re-choosing, while the robot turns on the spot towards it.
+* With nothing passable in view the robot turns to the direction it can move furthest and creeps
+  along it, instead of turning on the spot for ever.
 """
 
 from __future__ import annotations
@@ -239,23 +244,21 @@ class HimPlanner:
             target = (gx, gy)
         else:
             cur = None
+            held: tuple[float, float] | None = None  # the current escape point, robot frame
             if self.subgoal_world is not None:
                 sx, sy = self._to_robot(obs, *self.subgoal_world)
                 if abs(math.atan2(sy, sx)) > p.turn_in_place_rad and math.hypot(sx, sy) >= p.reach_m:
                     # still turning towards the chosen escape point: hold it (the laser's view swings
                     # with the body, and a re-choice at every step makes the robot turn to and fro)
                     return drive_command(spec, 0.0, p.yaw_gain * math.atan2(sy, sx))
-                if math.hypot(sx, sy) < p.reach_m or not self._reachable(pts, np.array([[sx, sy]]), r + 0.03, r)[0]:
+                if math.hypot(sx, sy) < p.reach_m:
                     self.subgoal_world = None
                 else:
-                    cur = (sx, sy, math.hypot(sx, sy) + math.hypot(gx - sx, gy - sy)
-                           + float(self._visit_cost(obs, np.array([[sx, sy]]))[0]))
+                    held = (sx, sy)
             ang, rng = polar_grid(view, p.bin_rad, p.horizon_m)
             cand = escape_points(ang, rng, r, p.margin_m, p.horizon_m)
-            near = rng < p.horizon_m
-            # the straight-line test uses every return, not only the grid's cells: a wall seen at a
-            # grazing angle leaves cells farther apart than the body is wide
-            best = None
+            order = np.zeros(0, dtype=int)
+            dtot = np.zeros(0)
             if len(cand):
                 dist = np.hypot(cand[:, 0], cand[:, 1])
                 cand, dist = cand[dist > p.reach_m], dist[dist > p.reach_m]
@@ -263,10 +266,23 @@ class HimPlanner:
                 first = np.argsort(dtot)[:24]
                 dtot[first] += self._visit_cost(obs, cand[first])
                 order = first[np.argsort(dtot[first])][:12]
-                ok = self._reachable(pts, cand[order], r + 0.03, r) if len(order) else np.zeros(0, dtype=bool)
-                if ok.any():
-                    j = int(order[int(np.argmax(ok))])
-                    best = (float(cand[j, 0]), float(cand[j, 1]), float(dtot[j]))
+            # one straight-line test for the held point and the candidates (on every return, not
+            # only the grid's cells: a wall seen at a grazing angle leaves cells farther apart than
+            # the body is wide)
+            targets = cand[order] if held is None else np.vstack((np.array([held]), cand[order]))
+            ok = self._reachable(pts, targets, r + 0.03, r) if len(targets) else np.zeros(0, dtype=bool)
+            if held is not None:
+                if ok[0]:
+                    sx, sy = held
+                    cur = (sx, sy, math.hypot(sx, sy) + math.hypot(gx - sx, gy - sy)
+                           + float(self._visit_cost(obs, np.array([held]))[0]))
+                else:
+                    self.subgoal_world = None
+                ok = ok[1:]
+            best = None
+            if ok.any():
+                j = int(order[int(np.argmax(ok))])
+                best = (float(cand[j, 0]), float(cand[j, 1]), float(dtot[j]))
             if best is not None and (cur is None or best[2] < cur[2] - p.switch_gain_m):
                 cur = best
                 self.subgoal_world = self._to_world(obs, best[0], best[1])
@@ -274,12 +290,12 @@ class HimPlanner:
                 # (pressed against a wall tip, every escape point fails the margin test; the way
                 # out is the direction the body can move furthest, returns behind it not blocking)
                 dirs = np.linspace(-math.pi, math.pi, 72, endpoint=False)
-                free = departing_free_m(view.xy, dirs, r, 1.0)
+                free = departing_free_m(view.xy, dirs, r + 0.03, 1.0)
                 k = int(np.argmax(free - 0.3 * np.abs(norm_angle_arr(dirs - g_rel))))
                 a = float(dirs[k])
-                if abs(a) > math.radians(20.0):
+                if abs(a) > math.radians(10.0):
                     return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a))
-                v = 0.3 * spec.max_speed_m_s if free[k] > 0.15 else 0.0
+                v = 0.3 * spec.max_speed_m_s * min(1.0, free[k] / 0.5) if free[k] > 0.2 else 0.0
                 return drive_command(spec, v, p.yaw_gain * a)
             target = (cur[0], cur[1])
         bearing = math.atan2(target[1], target[0])

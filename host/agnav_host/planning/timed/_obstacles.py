@@ -15,7 +15,9 @@ Moving obstacles: 003 registers two detections, estimates the obstacle's step an
 position two steps ahead falls in the robot's collision radius. AgNav uses the tracker's velocity
 instead and predicts over the whole horizon, growing the obstacle's radius with the velocity
 uncertainty: r(t) = r0 + k sigma_p + min(k sigma_v (t - t_stamp), max_growth) (k = 2: about 95 % per
-axis; the growth is capped because tracks are refreshed every step and walkers turn). The plan is
+axis; the growth is capped because tracks are refreshed every step and walkers turn). From a tracker's
+covariance, sigma_v is the largest 1-sigma of the velocity in any direction (the speed's and the
+heading's uncertainty), sigma_p the larger position sigma. The plan is
 checked against that disc at every sample time (space-time), not against a two-step snapshot.
 """
 
@@ -106,15 +108,19 @@ class MovingObstacle:
             return default
 
         pos_sigma = get("pos_sigma_m", default=0.05)
-        cov = getattr(o, "covariance", None)  # perception's Track: state covariance, position block first
+        speed_sigma = get("speed_sigma_m_s", "speed_sigma", default=0.1)
+        cov = getattr(o, "covariance", None)  # perception's Track: covariance of (x, y, vx, vy)
         if cov is not None:
             try:
-                pos_sigma = math.sqrt(max(float(cov[0][0]), float(cov[1][1]), 0.0))
+                c = np.asarray(cov, dtype=float)
+                pos_sigma = math.sqrt(max(float(c[0, 0]), float(c[1, 1]), 0.0))
+                if c.shape == (4, 4):  # the velocity's largest 1-sigma in any direction: heading uncertainty too
+                    speed_sigma = max(speed_sigma, math.sqrt(max(float(np.linalg.eigvalsh(c[2:, 2:])[-1]), 0.0)))
             except (TypeError, IndexError, ValueError):
                 pass
         return MovingObstacle(get("x_m", "x"), get("y_m", "y"), get("vx_m_s", "vx"), get("vy_m_s", "vy"),
-                              get("radius_m", "radius", default=0.25), get("speed_sigma_m_s", "speed_sigma", default=0.1),
-                              pos_sigma, get("stamp_s", "t_s", default=stamp_s))
+                              get("radius_m", "radius", default=0.25), speed_sigma, pos_sigma,
+                              get("stamp_s", "t_s", default=stamp_s))
 
 
 def moving_obstacles_from(items: Sequence[Any] | None, stamp_s: float) -> list[MovingObstacle]:

@@ -9,8 +9,11 @@ Each control step:
 2. **static obstacles** (laser and/or sonar returns, unknown in advance): if returns block the
    footprint within ``detect_range_m`` along the plan, the 003 deviation point is computed from the
    detection (range, bearing, size) and a new plan through it keeps the arrival time (catch-up).
-3. **moving obstacles** (tracks in ``obs.extras["tracks"]``, and other robots' plans in
-   ``obs.extras["peer_plans"]``): the plan is checked in space-time against each track predicted with
+3. **moving obstacles** (tracks in ``obs.extras["tracks"]``; without them, perception's
+   :class:`~agnav_host.perception.ObstacleTracker` runs on the laser scans, placed with the pose the
+   scan carries (the host's believed pose), and its *moving* tracks are used; and other robots'
+   plans in ``obs.extras["peer_plans"]``; a track where a peer's plan puts that robot is taken as
+   the robot and left to its plan): the plan is checked in space-time against each track predicted with
    its velocity and growing uncertainty; a conflict is resolved by waiting, then by deviating, keeping
    the arrival time where possible (:mod:`._resolve`).
 4. **delays** (dead band, slip, a safety stop by the firmware): when the robot is more than
@@ -39,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_rad
+from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
                          first_blocked_s, first_conflict, moving_obstacles_from)
@@ -79,6 +83,10 @@ class TimedParams:
     # to neutral (stop): that point is 43.5 cm/s rounded to a whole PWM count, 446 mm/s in the default
     # table, so commands never go below 0.45 m/s (slower plans are driven through the speed ratio)
     command_min_m_s: float = 0.45
+    # moving obstacles from perception's tracker on the scans when obs.extras has no "tracks"
+    track_from_scan: bool = True
+    track_coast_s: float = 1.0  # a track survives this long unseen (occlusions), predicted on its velocity
+    peer_match_m: float = 0.5  # a track this close to where another robot's plan puts that robot is that robot
 
     def __post_init__(self) -> None:
         if not 0 < self.plan_steer_deg <= self.max_steer_deg < 90:
@@ -126,6 +134,8 @@ class TimedPlanner:
         self.replan_times_s: list[float] = []  # wall time of each replanning call
         self.replan_cpu_s: list[float] = []  # CPU time of the planner's thread in it (what a shared, loaded machine does not inflate)
         self.events: list[tuple[float, str]] = []
+        self.tracker = ObstacleTracker(TrackerParams(max_coast_s=self.params.track_coast_s, max_grow_m=0.15))
+        self.tracked_moving: list[Track] = []  # the tracker's moving tracks at the last step
         self.status: dict[str, Any] = {"feasible": None, "reason": "no plan yet", "earliest_arrival_s": None,
                                        "arrival_s": None, "replans": 0, "last_action": None, "deadline_misses": 0}
 
@@ -253,10 +263,16 @@ class TimedPlanner:
             self._initial_plan(obs, target, before)
         assert self.plan is not None
         p = self.params
-        tracks = moving_obstacles_from(obs.extras.get("tracks") or obs.extras.get("moving_obstacles"), t)  # type: ignore[arg-type]
+        given = obs.extras.get("tracks", obs.extras.get("moving_obstacles"))
+        if given is None and p.track_from_scan and obs.scan is not None and obs.scan.pose is not None:
+            self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, t) if tr.moving]
+            given = self.tracked_moving
+        tracks = moving_obstacles_from(given, t)  # type: ignore[arg-type]
+        peers = [PlanObstacle(pp, pp.limits.radius_m) for pp in obs.extras.get("peer_plans") or []]  # type: ignore[union-attr]
+        if peers and tracks:  # a track where a peer's plan puts it is that robot: its plan predicts it better
+            tracks = [m for m in tracks if not _is_peer(m, peers, t, p.peer_match_m)]
         movers: list[SpaceTimeObstacle] = list(tracks)
-        peers = obs.extras.get("peer_plans") or []
-        movers += [PlanObstacle(pp, pp.limits.radius_m) for pp in peers]  # type: ignore[union-attr]
+        movers += peers
         pts = self._static_points(obs, movers)
         # progress is needed by the checks: a cheap projection first
         self.ts.s_m, _ = self.plan.path.project(obs.pose.x_m, obs.pose.y_m, self.ts.s_m,
@@ -357,6 +373,16 @@ class TimedPlanner:
             self._set_status(new, action)
         else:
             self.status["last_action"] = action
+
+
+def _is_peer(m: MovingObstacle, peers: list[PlanObstacle], t_s: float, tol_m: float) -> bool:
+    """True when the track ``m`` is within ``tol_m`` of a peer robot's planned footprint at ``t_s``."""
+    tt = np.array([t_s])
+    for pe in peers:
+        xy, _ = pe.predict(tt)
+        if math.hypot(m.x_m - float(xy[0, 0]), m.y_m - float(xy[0, 1])) <= tol_m:
+            return True
+    return False
 
 
 def norm_angle_arr(a: FloatArray) -> FloatArray:

@@ -1,0 +1,74 @@
+"""Signing keys on the host: SETUP_SIGNING for the robot, and `agnav key push` against the SIL
+firmware served over TCP (the robot takes an unsigned key only just after power-on; later only
+one signed with the key it holds)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from agnav_host.link.keys import CLEAR_KEY, mavlink_timestamp, new_key, setup_signing_message
+from agnav_host.protocol import dialect
+
+
+def test_mavlink_timestamp_counts_10us_since_2015():
+    assert mavlink_timestamp(1420070400.0) == 0
+    assert mavlink_timestamp(1420070401.5) == 150_000
+    assert mavlink_timestamp(0.0) == 0
+
+
+def test_setup_signing_message_round_trips_and_checks_the_key_length():
+    d = dialect()
+    key = bytes(range(32))
+    msg = setup_signing_message(d, key, 7, unix_s=1420070402.0)
+    mav = d.MAVLink(None, srcSystem=255, srcComponent=190)
+    back = d.MAVLink(None).parse_buffer(msg.pack(mav))[0]
+    assert (back.target_system, back.target_component) == (7, 1)
+    assert bytes(back.secret_key) == key and back.initial_timestamp == 200_000
+    assert bytes(setup_signing_message(d, CLEAR_KEY, 1).secret_key) == bytes(32)
+    with pytest.raises(ValueError):
+        setup_signing_message(d, b"short", 1)
+
+
+@pytest.fixture()
+def sil_server():
+    """The SIL firmware (power-on at t = 0) served on a loopback TCP port at 4x real time."""
+    from agnav_host.sil import build_library
+    from agnav_host.sil.server import ServeOptions, serve
+    from agnav_host.sim import load_scenario
+
+    build_library()
+    box: dict[str, object] = {}
+    up = threading.Event()
+
+    def ready(addr, pty):
+        box["addr"] = addr
+        up.set()
+
+    opt = ServeOptions(tcp=("127.0.0.1", 0), speedup=4.0, duration_s=80.0)  # 20 s of wall time
+    th = threading.Thread(target=lambda: serve(load_scenario("corridor_obstacles"), opt, log=lambda m: None,
+                                               ready=ready), daemon=True)
+    th.start()
+    assert up.wait(30)
+    host, port = box["addr"]
+    yield f"tcp:{host}:{port}"
+
+
+def test_key_push_sets_the_key_and_a_later_unsigned_push_is_refused(sil_server, tmp_path, capsys):
+    from agnav_host.cli import main
+
+    k1, _ = new_key(tmp_path / "k1.key")
+    k2, _ = new_key(tmp_path / "k2.key")
+    common = ["--device", sil_server, "--no-tlog", "--wait", "10", "--timeout", "1.0"]
+    assert main(["key", "push", "--key-file", str(k1), *common]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "set; it answered" in out, out
+    # 10 simulated s later (2.5 s of wall time at 4x) the provisioning window is closed: an unsigned
+    # change is refused, so requests signed with the new key go unanswered.
+    import time
+
+    time.sleep(3.0)
+    assert main(["key", "push", "--key-file", str(k2), *common]) != 0
+    # Signed with the key the robot holds, the change is taken.
+    assert main(["key", "push", "--key-file", str(k2), "--old-key-file", str(k1), *common]) == 0
