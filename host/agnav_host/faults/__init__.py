@@ -23,5 +23,9 @@ def all_cases() -> list[FaultCase]:
     except ImportError:
         FIRMWARE_CASES = ()
     cases += FIRMWARE_CASES
+    from .command_faults import COMMAND_CASES, SIGNING_CASES
+
+    cases += COMMAND_CASES
+    cases += SIGNING_CASES
     cases += HOST_CASES
     return cases

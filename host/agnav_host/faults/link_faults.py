@@ -56,6 +56,9 @@ class DriveTrace:
     deliveries_us: list[int] = field(default_factory=list)  # uplink frames reaching the firmware's UART
     statuses: list[tuple[int, int, int, int]] = field(default_factory=list)  # (t_us, layer, reason, failsafe flags) the host saw
     texts: list[tuple[int, str]] = field(default_factory=list)  # STATUSTEXT the host saw
+    acks: list = field(default_factory=list)  # COMMAND_ACK the host saw
+    # SYS_STATUS errors_count1..4 at the end: refusals, unsigned, wrong key, replayed frames dropped
+    sys_status_counters: tuple[int, ...] = ()
     t0_us: int = 0
     link: dict[str, int] = field(default_factory=dict)
 
@@ -139,6 +142,10 @@ def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, 
             tr.texts += s.host.statustexts[n_text:]
             n_text = len(s.host.statustexts)
         tr.link = {"up_sent": s.up.frames_sent, "up_lost": s.up.frames_lost}
+        tr.acks = list(s.host.acks)
+        ss = s.host.sys_status
+        if ss is not None:
+            tr.sys_status_counters = tuple(int(getattr(ss, f"errors_count{i}")) for i in range(1, 5))
     finally:
         s.close()
     return tr

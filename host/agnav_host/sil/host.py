@@ -136,6 +136,7 @@ class HostEndpoint:
     status: BehaviourStatus | None = None
     sonar: SonarRingFrame | None = None
     heartbeat_seen_us: int | None = None
+    sys_status: Any = None  # the latest SYS_STATUS (health bits, refusal and signing counters)
     odometry_log: list[Odometry] = field(default_factory=list)
     status_log: list[BehaviourStatus] = field(default_factory=list)
     sonar_log: list[SonarRingFrame] = field(default_factory=list)
@@ -271,6 +272,8 @@ class HostEndpoint:
             self.heartbeat_seen_us = t_us
         elif kind == "COMMAND_ACK":
             self.acks.append(m)
+        elif kind == "SYS_STATUS":
+            self.sys_status = m
         elif kind == "AGNAV_CALIB_ACK":
             self.calib_acks.append(m)
         elif kind == "PARAM_VALUE":
