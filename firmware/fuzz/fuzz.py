@@ -257,6 +257,7 @@ def run_one(binary: Path, mode: str, seconds: int, workers: int, timeout_s: int,
         "execs": stats.get("number_of_executed_units", int(covs[-1][0]) if covs else 0),
         "exec_s": stats.get("average_exec_per_sec", 0),
         "cov": int(covs[-1][1]) if covs else 0, "ft": int(covs[-1][2]) if covs else 0,
+        "corp": int(covs[-1][3]) if covs else 0,
         "corpus": _count_files(corpus), "corpus_before": corpus_before,
         "artifacts": new_art, "findings": len(findings), "log": log,
     }
@@ -266,8 +267,8 @@ def summary(res: dict) -> str:
     problems = res["findings"] + len(res["artifacts"]) + (1 if res["rc"] != 0 else 0)
     lines = [
         f"fuzz [{res['mode']}]: {res['execs']} executions in {res['wall_s']:.0f} s ({res['exec_s']} exec/s)",
-        f"fuzz [{res['mode']}]: coverage {res['cov']} edges, {res['ft']} features; corpus {res['corpus']} inputs"
-        f" (was {res['corpus_before']}; seeds in build/fuzz/corpus)",
+        f"fuzz [{res['mode']}]: coverage {res['cov']} edges, {res['ft']} features; corpus {res['corp']} inputs in"
+        f" use, {res['corpus']} files in build/fuzz/corpus-{res['mode']} (was {res['corpus_before']})",
     ]
     if problems == 0:
         lines.append(f"fuzz [{res['mode']}]: 0 crashes, 0 hangs, 0 sanitizer reports")

@@ -36,10 +36,11 @@ if target == "avr":
     env.Append(
         CFLAGS=COMMON_CFLAGS,
         # -flto lets the encoder hook be inlined into the pin-change ISR (see hal/avr).
-        CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os", "-flto"],
+        CCFLAGS=COMMON_CCFLAGS + mcu_flags + ["-Os", "-flto", "-mrelax", "-mcall-prologues"],
+        ASFLAGS=mcu_flags,
         CPPDEFINES=[("F_CPU", "$BOARD_F_CPU")],
         LINKFLAGS=mcu_flags + [
-            "-Os", "-flto", "-Wl,--gc-sections",
+            "-Os", "-flto", "-mrelax", "-mcall-prologues", "-Wl,--gc-sections",
             "-Wl,-Map," + join("$BUILD_DIR", "${PROGNAME}.map"),  # tools/fw_size.py reads it
         ],
         BUILDERS=dict(
