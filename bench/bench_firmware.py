@@ -39,7 +39,6 @@ TARGETS = {"flash_B": 48 * 1024, "ram_B": 3 * 1024, "tick_us": 1000, "isr_cycles
 # PLATFORMIO_BUILD_DIR is honoured (several engineers build in one checkout); the non-LTO build
 # for the per-module size split goes next to it.
 BUILD_DIR = Path(os.environ.get("PLATFORMIO_BUILD_DIR", str(REPO / ".pio" / "build")))
-SIZE_NOLTO_DIR = BUILD_DIR.parent / (BUILD_DIR.name + "-size-nolto")
 
 
 def pio_env(**extra: str) -> dict:
@@ -54,27 +53,13 @@ def build(env: str) -> Path:
     return BUILD_DIR / env / "firmware.elf"
 
 
-def size_table(env: str, elf: Path) -> str:
-    """Flash/RAM per module and in total, as tools/fw_size.py prints it, from our own build dirs."""
+def size_table(env: str) -> str:
+    """Flash/RAM per module and in total, exactly as tools/fw_size.py prints it (same build dirs)."""
     sys.path.insert(0, str(REPO / "tools"))
-    import fw_size  # noqa: E402  (parse_map and the limits; fw_size's own main hard-codes .pio/build)
+    import fw_size  # noqa: E402
 
-    subprocess.run([str(REPO / ".venv" / "bin" / "pio"), "run", "-s", "-e", env], cwd=REPO, check=True,
-                   stdout=subprocess.DEVNULL,
-                   env=pio_env(PLATFORMIO_BUILD_UNFLAGS="-flto", PLATFORMIO_BUILD_DIR=str(SIZE_NOLTO_DIR)))
-    per = fw_size.parse_map((SIZE_NOLTO_DIR / env / "firmware.map").read_text(encoding="utf-8", errors="replace"))
-    sizes = subprocess.run(["avr-size", "-A", "-d", str(elf)], capture_output=True, text=True, check=True).stdout
-    sec = {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\.\w+)\s+(\d+)", sizes, re.M)}
-    flash_total = sec.get(".text", 0) + sec.get(".data", 0)
-    ram_total = sec.get(".data", 0) + sec.get(".bss", 0) + sec.get(".noinit", 0)
-    rows = [f"{'module':<14}{'flash B':>10}{'RAM B':>8}"]
-    for mod, v in sorted(per.items(), key=lambda kv: -kv[1]["flash"]):
-        rows.append(f"{mod:<14}{v['flash']:>10}{v['ram']:>8}")
-    rows.append(f"{'TOTAL (LTO ELF)':<14}{flash_total:>10}{ram_total:>8}")
-    rows.append(f"flash {flash_total} B of target {TARGETS['flash_B']} B "
-                f"({'OK' if flash_total <= TARGETS['flash_B'] else 'OVER'}); static RAM {ram_total} B of target "
-                f"{TARGETS['ram_B']} B ({'OK' if ram_total <= TARGETS['ram_B'] else 'OVER'})")
-    return "\n".join(rows)
+    fw_size.build(env)
+    return fw_size.table(env) or "(no size table)"
 
 
 def host_frames_hex() -> str:
@@ -116,7 +101,7 @@ def main(argv=None) -> int:
         lines.append(text)
 
     elf = build("megaatmega2560_bench")
-    size = size_table("megaatmega2560_bench", elf)
+    size = size_table("megaatmega2560_bench")
     say("## Flash and static RAM (ATmega2560, benchmark profile, LTO)")
     say("```")
     say(size.rstrip())

@@ -38,6 +38,7 @@ static uint8_t p_sonar_count;   /* 0 none, 1 SRF05 front, 6 HC-SR04, 12 ring */
 static uint8_t p_mode_flags;    /* BHV_MODE_* enabled at boot */
 static behaviour_params_t p_bhv;
 static health_params_t p_health;
+static uint8_t p_sign_telem;    /* 1: sign sent frames while a key is set (received ones are always checked) */
 
 /* Keys are append-only (STYLE: never reorder or reuse a row). Units are in the names. */
 static const PARAMS_ROM param_def_t PARAMS[] = {
@@ -81,6 +82,7 @@ static const PARAMS_ROM param_def_t PARAMS[] = {
     {"HLTH_EDGE_MAX", PARAM_U16, &p_health.enc_edges_max, 0, 60000},
     {"HLTH_SONAR_FR", PARAM_U8, &p_health.sonar_fault_frames, 0, 50},
     {"HLTH_ZERO_FR", PARAM_U8, &p_health.sonar_zero_frames, 0, 100},
+    {"SIGN_TELEM", PARAM_U8, &p_sign_telem, 0, 1},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
@@ -114,6 +116,7 @@ static void defaults(void)
     p_mode_flags = AGNAV_DEFAULT_MODES;
     p_bhv = BEHAVIOUR_PARAMS_DEFAULT;
     p_health = HEALTH_PARAMS_DEFAULT;
+    p_sign_telem = 1u;
 }
 
 /* ---- state ---------------------------------------------------------------------------------- */
@@ -124,6 +127,7 @@ static uint32_t s_frame_ms;
 static bool s_watchdog_boot;
 static bool s_params_corrupt; /* stored parameters were corrupt: defaults in use (health flag) */
 static const sonar_ring_cfg_t *s_ring;
+static bool s_frame_fault; /* a sensor of the frame in s_in.sonar is SONAR_FAULT (set with the frame) */
 
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
 
@@ -167,26 +171,13 @@ static void on_calib(const mavlink_message_t *in)
 
 static void task_link(void)
 {
+    signing_set_sign_telemetry(p_sign_telem != 0u); /* SIGN_TELEM applies at once */
     link_poll(hal_time_ms());
     link_state_t *ls = link_state();
     if (ls->arm_request) {
         ls->arm_request = false;
         behaviour_arm();
         health_clear(); /* a sensor still faulty latches again (docs/safety.md) */
-    }
-}
-
-static void task_sonar(void)
-{
-    if (s_ring == 0) {
-        return;
-    }
-    sonar_ring_step(hal_time_us());
-    /* Straight into the behaviour inputs: tasks run one at a time, so the control
-     * task never sees a half-written frame. */
-    if (sonar_ring_snapshot(&s_in.sonar)) {
-        s_frame_ms = hal_time_ms();
-        health_sonar(&s_in.sonar);
     }
 }
 
@@ -202,6 +193,22 @@ static bool sonar_any_fault(const sonar_frame_t *f)
     return false;
 }
 
+static void task_sonar(void)
+{
+    if (s_ring == 0) {
+        return;
+    }
+    sonar_ring_step(hal_time_us());
+    /* Straight into the behaviour inputs: tasks run one at a time, so the control
+     * task never sees a half-written frame. */
+    if (sonar_ring_snapshot(&s_in.sonar)) {
+        s_frame_ms = hal_time_ms();
+        health_sonar(&s_in.sonar);
+        s_frame_fault = sonar_any_fault(&s_in.sonar);
+        behaviour_sonar_frame(&s_in.sonar); /* follow-wall sums here, not in the control tick */
+    }
+}
+
 /* Wheel travel in one control tick beyond this (10 m/s at 20 ms) is no wheel of an AgNav robot:
  * a noisy or shorted encoder line. It is clamped before odometry (whose integration work grows
  * with the distance: a 20 kHz storm of Hall pulses took 1.9 M cycles, 121 ms, per tick on the
@@ -209,13 +216,17 @@ static bool sonar_any_fault(const sonar_frame_t *f)
 #define ODOM_MAX_TICK_UM 200000L
 static uint8_t s_implausible; /* bit i: wheel i's travel was clamped this tick */
 
-static void update_odometry(void)
+/* count_lo / edges_lo: the low 16 bits of each wheel's count and edge total as this update
+ * folded them, for the health check (no second fold of the interrupt records per tick). */
+static void update_odometry(uint16_t *count_lo, uint16_t *edges_lo)
 {
     encoder_update(hal_time_us());
     encoder_motion_t m[ENCODER_MAX];
     s_implausible = 0u;
     for (uint8_t i = 0; i < p_enc_count; i++) {
         encoder_motion(i, &m[i]);
+        count_lo[i] = (uint16_t)m[i].count;
+        edges_lo[i] = (uint16_t)m[i].edges;
         if (m[i].delta_um > ODOM_MAX_TICK_UM || m[i].delta_um < -ODOM_MAX_TICK_UM) {
             m[i].delta_um = m[i].delta_um > 0 ? ODOM_MAX_TICK_UM : -ODOM_MAX_TICK_UM;
             s_implausible = (uint8_t)(s_implausible | (1u << i));
@@ -244,20 +255,13 @@ static void update_odometry(void)
 
 /* Encoder health, before this tick's command: "driving" is what the outputs did since the
  * last tick (not neutral: the calibration dead band already maps too-slow requests to neutral). */
-static void check_encoders(uint32_t now_ms)
+static void check_encoders(uint32_t now_ms, const uint16_t *count, const uint16_t *edges)
 {
     const drive_output_t *d = drive_output();
     /* Not in calibration mode (raw PWM): its sweep drives below the motion threshold on purpose. */
     bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && link_state()->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
     bool driving = !raw && s_out.speed_mm_s != 0 &&
                    (p_drive_kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
-    uint16_t count[ENCODER_MAX], edges[ENCODER_MAX];
-    for (uint8_t i = 0; i < p_enc_count && i < ENCODER_MAX; i++) {
-        encoder_snapshot_t snap;
-        encoder_snapshot(i, &snap);
-        count[i] = (uint16_t)snap.count;
-        edges[i] = (uint16_t)snap.edges;
-    }
     health_encoders(now_ms, driving, count, edges, (uint8_t)(encoder_faults() | s_implausible));
 }
 
@@ -290,8 +294,9 @@ static void task_control(void)
 {
     uint32_t now_ms = hal_time_ms();
     hal_watchdog_kick();
-    update_odometry();
-    check_encoders(now_ms);
+    uint16_t count_lo[ENCODER_MAX], edges_lo[ENCODER_MAX];
+    update_odometry(count_lo, edges_lo);
+    check_encoders(now_ms, count_lo, edges_lo);
     report_health();
     odom_pose_t pose;
     odom_get(&pose);
@@ -311,7 +316,7 @@ static void task_control(void)
     in->manual_valid = ls->manual.valid;
     in->estop = ls->estop;
     in->encoder_fault = encoder_faults() != 0u || health_encoder_fault();
-    in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || sonar_any_fault(&in->sonar) ||
+    in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || s_frame_fault ||
                                       health_sonar_fault());
     in->reset_was_watchdog = s_watchdog_boot;
     /* "Stored configuration not in use": calibration defaulted, or a corrupt parameter record. */
@@ -335,8 +340,10 @@ static void task_control(void)
     } else {
         drive_apply(s_out.steer_cdeg, s_out.speed_mm_s);
     }
-    for (uint8_t i = 0; i < p_enc_count; i++) {
-        encoder_set_direction_hint(i, drive_output()->direction);
+    if (p_enc_mode == ENCODER_MODE_HALL) { /* the hint only signs Hall pulses */
+        for (uint8_t i = 0; i < p_enc_count; i++) {
+            encoder_set_direction_hint(i, drive_output()->direction);
+        }
     }
     s_out_ms = now_ms;
 }
@@ -533,6 +540,7 @@ void agnav_setup(void)
     memset(&s_in, 0, sizeof s_in);
     memset(&s_out, 0, sizeof s_out);
     memset(&s_sent, 0, sizeof s_sent);
+    s_frame_fault = false;
     s_out_ms = s_sent_ms = 0u;
     s_stats_next = 0u;
     s_telem1_phase = 0u;
@@ -570,6 +578,7 @@ void agnav_setup(void)
     link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib, window_ms};
     hal_uart_init(HAL_UART_LINK, 57600u);
     link_init(&lc);
+    signing_set_sign_telemetry(p_sign_telem != 0u); /* before the boot report goes out */
     link_state()->behaviour_enable = p_mode_flags;
     report_boot(cause);
     if (signing_state() == SIGNING_KEY_CORRUPT) {

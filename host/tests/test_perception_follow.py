@@ -178,7 +178,8 @@ jitter_m = {jitter_m}
 """
 
 
-def test_proximity_follower_holds_the_distance_through_a_bend():
+@pytest.mark.parametrize("smooth_cutoff_m", [8.0, 0.0])  # the smoother (default) and the cubic
+def test_proximity_follower_holds_the_distance_through_a_bend(smooth_cutoff_m):
     # the curvy_row bend (radius down to 9.7 m) with bushes on the line: the robot, 1 m right of the row
     # (on the outside, then the inside of the bends), keeps 1 m from the centre line within 4 cm
     from agnav_host.sim.world import sine_curve
@@ -187,7 +188,7 @@ def test_proximity_follower_holds_the_distance_through_a_bend():
     assert sc.laser is not None
     # bushes with no scatter about the line; 0.145 m: their visible half-width (a calibration drive as in the benchmark)
     ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, row_half_width_m=0.145,
-                                                     speed_m_s=0.5, mount=sc.laser.mount))
+                                                     speed_m_s=0.5, mount=sc.laser.mount, smooth_cutoff_m=smooth_cutoff_m))
     traj = _run(sc, ctrl, 28.0)
     centre = sine_curve(0.0, 0.0, 0.0, 16.0, 1.5, 24.0, step_m=0.05)
     late = traj[(traj[:, 1] > 2.0) & (traj[:, 1] < 13.0)]

@@ -11,6 +11,12 @@ void SysTick_Handler(void) __attribute__((weak, alias("Default_Handler")));
 void USART1_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 void TIM2_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 void EXTI0_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI1_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI2_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI3_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI4_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI9_5_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void EXTI15_10_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 
 #define SCB_CPACR (*(volatile uint32_t *)0xE000ED88u)
 
@@ -54,8 +60,14 @@ void (*const g_vectors[16u + IRQ_COUNT])(void) = {
     Default_Handler, /* PendSV */
     SysTick_Handler,
     [16u + 6u] = EXTI0_IRQHandler,
+    [16u + 7u] = EXTI1_IRQHandler,
+    [16u + 8u] = EXTI2_IRQHandler,
+    [16u + 9u] = EXTI3_IRQHandler,
+    [16u + 10u] = EXTI4_IRQHandler,
+    [16u + 23u] = EXTI9_5_IRQHandler,
     [16u + 28u] = TIM2_IRQHandler,
     [16u + 37u] = USART1_IRQHandler,
+    [16u + 40u] = EXTI15_10_IRQHandler,
 };
 
 #endif

@@ -198,6 +198,11 @@ static struct {
     bool timer_on[2];                   /* canyon timers: [0] left, [1] right */
     uint32_t timer_end_ms[2];
     uint32_t wall_l, wall_r;
+    /* follow-wall sums of frame pre_seq, from behaviour_sonar_frame() (valid when pre_valid) */
+    bool pre_valid;
+    bool pre_side_clear;
+    uint32_t pre_seq;
+    uint32_t pre_l, pre_r, pre_f;
     uint32_t goal_dist_mm;              /* this tick, when goal seek is on and a goal is set */
     int32_t goal_err_cdeg;              /* goal bearing minus heading, -18000..17999 */
 } b;
@@ -279,13 +284,15 @@ static bool fresh(bool valid, uint32_t rx_ms, uint32_t now_ms, uint16_t timeout_
     return valid && (uint32_t)(now_ms - rx_ms) <= timeout_ms;
 }
 
-static uint8_t sonar_n(const behaviour_in_t *in)
+static uint8_t frame_n(const sonar_frame_t *fr)
 {
-    if (in->sonar.seq == 0u) {
+    if (fr->seq == 0u) {
         return 0u; /* no complete ring yet */
     }
-    return in->sonar.count < b.n ? in->sonar.count : b.n;
+    return fr->count < b.n ? fr->count : b.n;
 }
+
+static uint8_t sonar_n(const behaviour_in_t *in) { return frame_n(&in->sonar); }
 
 /* ---- layer: failsafe ------------------------------------------------------- */
 static uint8_t failsafe_flags(const behaviour_in_t *in)
@@ -414,14 +421,9 @@ static uint32_t extent_term(uint16_t cos_milli, uint16_t range_mm)
     return ((uint32_t)cos_milli * recip) >> 8;
 }
 
-static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
+/* The follow-wall sums of the first n sensors of a frame into b.pre_* (see layer_wall). */
+static void wall_sums(const sonar_frame_t *fr, uint8_t n)
 {
-    uint8_t n = sonar_n(in);
-    b.wall_l = 0u;
-    b.wall_r = 0u;
-    if ((in->mode_flags & BHV_MODE_FOLLOW_WALL) == 0u || n == 0u) {
-        return false;
-    }
     /* Obstacle extents (ref 002, the equation is lost in the text;
      * reconstructed from its description):
      *   l = sum over left sensors  of cos(a_i) / (R_i + R0)
@@ -434,11 +436,11 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
     uint32_t l = 0u, r = 0u, f = 0u;
     bool side_clear = true;
     for (uint8_t i = 0; i < n; i++) {
-        uint8_t st = in->sonar.status[i];
+        uint8_t st = fr->status[i];
         if (st != SONAR_VALID && st != SONAR_NO_ECHO) {
             continue; /* no information (faults are the failsafe's job) */
         }
-        uint16_t rng = in->sonar.ranges_mm[i];
+        uint16_t rng = fr->ranges_mm[i];
         if ((b.cls[i] & CLS_FRONT_SIDE) != 0u && st == SONAR_VALID && rng < b.engage_mm) {
             side_clear = false;
         }
@@ -454,6 +456,33 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
             f += term;
         }
     }
+    b.pre_l = l;
+    b.pre_r = r;
+    b.pre_f = f;
+    b.pre_side_clear = side_clear;
+    b.pre_seq = fr->seq;
+}
+
+void behaviour_sonar_frame(const sonar_frame_t *frame)
+{
+    wall_sums(frame, frame_n(frame));
+    b.pre_valid = true;
+}
+
+static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
+{
+    uint8_t n = sonar_n(in);
+    b.wall_l = 0u;
+    b.wall_r = 0u;
+    if ((in->mode_flags & BHV_MODE_FOLLOW_WALL) == 0u || n == 0u) {
+        return false;
+    }
+    if (!b.pre_valid || b.pre_seq != in->sonar.seq) {
+        b.pre_valid = false; /* computed here for this frame only */
+        wall_sums(&in->sonar, n);
+    }
+    uint32_t l = b.pre_l, r = b.pre_r, f = b.pre_f;
+    bool side_clear = b.pre_side_clear;
     b.wall_l = l;
     b.wall_r = r;
     bool blocked = f >= b.imin; /* something dead ahead inside the engage horizon */

@@ -160,6 +160,12 @@ void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ri
 /* One 50 Hz tick: evaluate the layers on *in, arbitrate, write *out. */
 void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out);
 
+/* Optional, once per new ring frame (main's sonar task): work out the follow-wall sums of
+ * the frame ahead of time, so the control tick does no per-sensor division. behaviour_step()
+ * uses them while in->sonar.seq is that frame's seq and computes them itself otherwise; the
+ * result is the same either way. The frame must not change afterwards without a new seq. */
+void behaviour_sonar_frame(const sonar_frame_t *frame);
+
 /* Host "arm"/clear: drops the e-stop latch (re-latches next tick if the
  * e-stop input is still active) and the watchdog-boot latch. */
 void behaviour_arm(void);

@@ -348,7 +348,8 @@ static int32_t travel_um(enc_loop_t *w, int32_t dc)
 {
     /* |dc| < 2^15 and um_q8 < 2^16 (< 256 mm per count): the product fits int32 */
     if (iabs32(dc) < 0x8000 && w->um_q8_per_count < 0x10000u) {
-        int32_t acc = dc * (int32_t)w->um_q8_per_count + (int32_t)w->resid_q8;
+        /* 16 x 16 -> 32 bit operands: avr-gcc calls its short widening multiply */
+        int32_t acc = (int32_t)(int16_t)dc * (int32_t)(uint16_t)w->um_q8_per_count + (int32_t)w->resid_q8;
         w->resid_q8 = (uint8_t)(acc & 0xFF);
         return acc >> 8; /* floor (arithmetic shift); the remainder stays in resid */
     }
@@ -372,7 +373,7 @@ static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
     uint32_t mag = (uint32_t)iabs32(d_um);
     uint32_t v;
     if (mag <= 0xFFFFu && recip_q16 <= 0xFFFFu) {
-        v = (mag * recip_q16 + 32768u) >> 16;
+        v = ((uint32_t)(uint16_t)mag * (uint16_t)recip_q16 + 32768u) >> 16; /* 16 x 16 -> 32 */
     } else {
         v = (uint32_t)(((uint64_t)mag * 1000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us);
     }
@@ -398,7 +399,7 @@ static int32_t period_speed_mm_s(uint32_t nm_per_count, uint16_t n, uint32_t spa
 static bool longer_than_period(uint32_t since_us, uint32_t span_us, uint16_t n)
 {
     if (since_us < 0x10000ul) {
-        return since_us * n > span_us;
+        return (uint32_t)(uint16_t)since_us * n > span_us; /* 16 x 16 -> 32 */
     }
     return (uint64_t)since_us * n > span_us;
 }
@@ -513,6 +514,7 @@ void encoder_motion(uint8_t idx, encoder_motion_t *out)
         out->delta_um = 0;
         out->speed_mm_s = 0;
         out->count = 0;
+        out->edges = 0u;
         out->method = ENCODER_SPEED_NONE;
         out->flags = ENCODER_F_UNCONFIGURED;
         return;
@@ -521,6 +523,7 @@ void encoder_motion(uint8_t idx, encoder_motion_t *out)
     out->delta_um = w->delta_um;
     out->speed_mm_s = w->speed_mm_s;
     out->count = (int32_t)(w->count - (uint32_t)w->pend_count); /* the count of the last update */
+    out->edges = w->edges - w->pend_edges;                          /* likewise */
     out->method = w->method;
     out->flags = w->flags;
 }

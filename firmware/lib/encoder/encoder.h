@@ -113,6 +113,7 @@ typedef struct {
     int32_t delta_um;   /* travel since the previous update, micrometres, forward positive */
     int32_t speed_mm_s; /* signed wheel speed, mm/s */
     int32_t count;      /* count used by this update */
+    uint32_t edges;     /* edge total used by this update (encoder_snapshot_t.edges then) */
     uint8_t method;     /* encoder_speed_method_t */
     uint8_t flags;      /* ENCODER_F_* */
 } encoder_motion_t;

@@ -2,7 +2,7 @@
  * AgNav hardware abstraction layer: the one interface every firmware module
  * talks to. Three backends implement it:
  *   avr/   ATmega2560 timers, pin-change interrupts, USART, EEPROM, watchdog
- *   stm32/ STM32F405 registers (USART1, TIM2, GPIO) as modelled by QEMU netduinoplus2
+ *   stm32/ STM32F405 registers: SysTick, USART1, GPIO, EXTI, TIM3/TIM4 PWM, IWDG (board.h)
  *   sim/   driven by unit tests and by the software-in-the-loop harness
  *
  * Devices are addressed by logical index (encoder 0..3, sonar 0..11, servo

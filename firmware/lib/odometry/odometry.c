@@ -133,8 +133,13 @@ uint32_t odom_bam_from_cdeg(int32_t angle_cdeg)
 
 int32_t odom_cdeg_from_bam(uint32_t angle_bam)
 {
-    int64_t v = (int64_t)(int32_t)angle_bam * 36000LL + (1LL << 31);
-    int32_t c = (int32_t)(v >> 32); /* floor((h * 36000 + 2^31) / 2^32): round to nearest */
+    /* floor((h * 36000 + 2^31) / 2^32), round to nearest, with h = hi * 2^16 + lo split so
+     * that two 16 x 16 -> 32 multiplies replace a 64-bit one (every control tick, odom_get):
+     * = floor((hi * 36000 + 2^15 + floor(lo * 36000 / 2^16)) / 2^16), exact. */
+    int16_t hi = (int16_t)(angle_bam >> 16);
+    uint16_t lo = (uint16_t)angle_bam;
+    int32_t v = (int32_t)hi * 36000L + 32768L + (int32_t)(((uint32_t)lo * 36000u) >> 16);
+    int32_t c = v >> 16; /* arithmetic shift: floor */
     return c <= -18000 ? 18000 : c;
 }
 
@@ -157,7 +162,9 @@ static int32_t mul_q16(int32_t d, uint32_t k)
     uint32_t m = d < 0 ? (uint32_t)0 - (uint32_t)d : (uint32_t)d;
     uint32_t r;
     if (m <= 0xFFFFu && k < 0x7FFF0000u) {
-        r = m * (k >> 16) + ((m * (k & 0xFFFFu) + 0x8000u) >> 16);
+        /* 16 x 16 -> 32 bit operands: avr-gcc's short widening multiply, not __mulsi3 */
+        uint16_t m16 = (uint16_t)m;
+        r = (uint32_t)m16 * (uint16_t)(k >> 16) + (((uint32_t)m16 * (uint16_t)k + 0x8000u) >> 16);
     } else {
         uint64_t w = ((uint64_t)m * k + 0x8000u) >> 16;
         r = w > 0x7FFFFFFFu ? 0x7FFFFFFFu : (uint32_t)w;
@@ -170,7 +177,11 @@ static int32_t mul_q16(int32_t d, uint32_t k)
  * move on the AVR, a 15-bit one a loop. */
 static int32_t mul_q15(int32_t d, int32_t c)
 {
-    uint32_t p = (uint32_t)(d * c + 16384L) << 1;
+    if (c == 32768L) {
+        return d; /* sin 90 deg, the one factor beyond int16: round(d * 2^15 / 2^15) */
+    }
+    /* 16 x 16 -> 32 bit operands (short widening multiply on the AVR) */
+    uint32_t p = (uint32_t)((int32_t)(int16_t)d * (int16_t)c + 16384L) << 1;
     return (int32_t)p >> 16;
 }
 

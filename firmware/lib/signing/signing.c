@@ -15,6 +15,7 @@ static uint32_t s_last_ms;
 static uint8_t s_last_write_ms;
 static uint8_t s_ts_slot;    /* slot the next timestamp goes to */
 static bool s_provisioning;
+static bool s_sign_telemetry; /* sent frames signed while a key is set */
 /* Background writer: one record at a time, one byte per tick. */
 static uint8_t s_wr_kind;    /* 0 none, 1 key record, 2 timestamp slot */
 static uint8_t s_wr_pos;
@@ -40,8 +41,16 @@ static void attach(bool on)
 {
     s_rx->signing = on ? &s_sign : 0;
     s_rx->signing_streams = on ? &s_streams : 0;
-    s_tx->signing = on ? &s_sign : 0;
-    s_tx->signing_streams = on ? &s_streams : 0;
+    s_tx->signing = on && s_sign_telemetry ? &s_sign : 0;
+    s_tx->signing_streams = on && s_sign_telemetry ? &s_streams : 0;
+}
+
+void signing_set_sign_telemetry(bool on)
+{
+    if (on != s_sign_telemetry) {
+        s_sign_telemetry = on;
+        attach(s_state != SIGNING_OFF);
+    }
 }
 
 static bool key_is_zero(const uint8_t *k)
@@ -111,6 +120,7 @@ void signing_init(mavlink_status_t *rx, mavlink_status_t *tx, uint32_t now_ms)
     s_rx = rx;
     s_tx = tx;
     s_wr_kind = WR_NONE;
+    s_sign_telemetry = true;
     s_last_ms = now_ms;
     s_last_write_ms = (uint8_t)now_ms;
     s_state = load_key();

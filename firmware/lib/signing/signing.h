@@ -64,5 +64,10 @@ bool signing_write_pending(void);
  * provisioning window is open, SETUP_SIGNING (link.c decides whether to apply it). */
 bool signing_accept_unsigned(uint32_t msgid);
 void signing_set_provisioning(bool open);
+/* Whether sent frames are signed while a key is set (parameter SIGN_TELEM; on after
+ * signing_init()). Received frames are verified either way: only the robot's own
+ * telemetry goes out unsigned when off (docs/safety.md "Signing"). Cheap, may be called
+ * every link task. */
+void signing_set_sign_telemetry(bool on);
 
 #endif

@@ -413,6 +413,35 @@ void test_behaviour_wall_steers_away_from_nearer_side(void)
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "open space: layer abstains");
 }
 
+/* The sums worked out ahead by behaviour_sonar_frame() (main's sonar task) give the same
+ * output as the tick working them out itself; a frame with a new seq is not served stale sums. */
+void test_behaviour_wall_precomputed_frame_matches_tick(void)
+{
+    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
+    set_range(10, 400u);
+    set_range(11, 600u);
+    set_range(1, 900u);
+    tick();
+    behaviour_out_t ref = out;
+    uint32_t l0, r0;
+    behaviour_wall_extents(&l0, &r0);
+
+    reinit();
+    behaviour_sonar_frame(&in.sonar);
+    tick();
+    uint32_t l1, r1;
+    behaviour_wall_extents(&l1, &r1);
+    TEST_ASSERT_EQUAL_UINT32(l0, l1);
+    TEST_ASSERT_EQUAL_UINT32(r0, r1);
+    TEST_ASSERT_EQUAL_INT16(ref.steer_cdeg, out.steer_cdeg);
+    TEST_ASSERT_EQUAL_INT16(ref.speed_mm_s, out.speed_mm_s);
+    TEST_ASSERT_EQUAL_UINT8(ref.reason, out.reason);
+
+    frame_free(); /* new seq, not handed to behaviour_sonar_frame: the tick computes */
+    tick();
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "stale sums of the previous frame not used");
+}
+
 /* Dead end, robot at the origin: side walls at y = +-400 mm, end wall at
  * x = 1000 mm, open behind. Range along world angle a (cdeg) by integer
  * ray casting, capped at the 4 m sensor range. */
@@ -532,6 +561,7 @@ int main(void)
     RUN_TEST(test_behaviour_avoid_abstains_when_mode_flag_clear);
     RUN_TEST(test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance);
     RUN_TEST(test_behaviour_wall_steers_away_from_nearer_side);
+    RUN_TEST(test_behaviour_wall_precomputed_frame_matches_tick);
     RUN_TEST(test_behaviour_canyon_timers_bound_left_right_switching_in_dead_end);
     RUN_TEST(test_behaviour_canyon_without_timers_oscillates);
     RUN_TEST(test_behaviour_integer_trig_within_tolerance);

@@ -339,6 +339,23 @@ static void test_odom_init_uses_defaults_and_rejects_tiny_track(void)
     TEST_ASSERT_INT32_WITHIN(2, 5730, p.heading_cdeg);
 }
 
+/* odom_cdeg_from_bam's 16-bit split equals the 64-bit formula it replaced, everywhere. */
+static void test_odom_cdeg_from_bam_matches_64_bit_reference(void)
+{
+    static const uint32_t EDGES[8] = {0u, 1u, 0xFFFFFFFFu, 0x80000000u, 0x7FFFFFFFu, 0xFFFFu, 0x10000u, 0xFFFF0000u};
+    uint32_t x = 0x9E3779B9u;
+    for (uint32_t k = 0; k < 20000u; k++) {
+        x = x * 1664525u + 1013904223u; /* LCG: pseudo-random angles */
+        uint32_t h = k < 8u ? EDGES[k] : x;
+        int64_t v = (int64_t)(int32_t)h * 36000LL + (1LL << 31);
+        int32_t c = (int32_t)(v >> 32);
+        if (c <= -18000) {
+            c = 18000;
+        }
+        TEST_ASSERT_EQUAL_INT32(c, odom_cdeg_from_bam(h));
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -359,5 +376,6 @@ int main(void)
     RUN_TEST(test_odom_tan_table_relative_error_below_4e_5);
     RUN_TEST(test_odom_bam_and_cdeg_round_trip);
     RUN_TEST(test_odom_init_uses_defaults_and_rejects_tiny_track);
+    RUN_TEST(test_odom_cdeg_from_bam_matches_64_bit_reference);
     return UNITY_END();
 }

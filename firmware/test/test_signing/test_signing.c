@@ -300,6 +300,45 @@ static void test_signing_robot_signs_its_telemetry(void)
     TEST_ASSERT_TRUE(signed_frame);
 }
 
+/* SIGN_TELEM = 0: the robot's own frames go out unsigned, received frames are still checked. */
+static void test_signing_telemetry_unsigned_when_off_but_commands_still_verified(void)
+{
+    setup_signing(NULL, KEY, T0);
+    signing_set_sign_telemetry(false);
+    uint8_t b;
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+    }
+    link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
+    static mavlink_message_t rx;
+    static mavlink_status_t st;
+    memset(&st, 0, sizeof st);
+    uint8_t frames = 0u;
+    bool signed_frame = true;
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
+            frames++;
+            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT8(1u, frames);
+    TEST_ASSERT_FALSE(signed_frame);
+    run_ms(WINDOW_MS + 10u); /* window closed */
+    estop(NULL, T0 + 100000u, 1.0f);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "unsigned command refused with SIGN_TELEM off");
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_unsigned);
+    estop(KEY, T0 + 200000u, 1.0f);
+    TEST_ASSERT_TRUE_MESSAGE(link_state()->estop, "signed command accepted");
+    signing_set_sign_telemetry(true);
+    link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
+    signed_frame = false;
+    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
+        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
+            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
+        }
+    }
+    TEST_ASSERT_TRUE_MESSAGE(signed_frame, "signed again when switched back on");
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -319,5 +358,6 @@ int main(void)
     RUN_TEST(test_signing_corrupt_key_record_fails_closed);
     RUN_TEST(test_signing_timestamp_is_stored_and_restored_ahead_after_reboot);
     RUN_TEST(test_signing_robot_signs_its_telemetry);
+    RUN_TEST(test_signing_telemetry_unsigned_when_off_but_commands_still_verified);
     return UNITY_END();
 }

@@ -16,7 +16,7 @@
  * encoder after the other in the same call, highest first. Cycle counts: see
  * BENCHMARKS.md (bench/bench_firmware.py measures them under simavr).
  */
-#if defined(__AVR_ATmega2560__) /* -mmcu for .S files: hal/avr/asm_flags.py */
+#if defined(__AVR_ATmega2560__) /* -mmcu for .S files: the platform builder's ASFLAGS */
 #include <avr/io.h>
 
 #include "../../encoder/encoder_isr.h"
