@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Planner benchmark (issue 8): the reference experiments on every host planner.
+"""Planner benchmark: the reference experiments on every host planner.
 
 Same as ``agnav bench planners``; arguments are passed through, e.g.::
 

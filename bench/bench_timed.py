@@ -1,4 +1,4 @@
-"""Benchmark of the time-critical planner (issue 9, ref 003): arrive at a set pose at a set time.
+"""Benchmark of the time-critical planner (ref 003): arrive at a set pose at a set time.
 
 Runs the ``timed`` planner in the world simulator (Ackermann RC-car model with the ref-003 PWM
 calibration tables, i.e. with the 43.5 cm/s dead band, speed lag, servo rate limit and 1 % slip noise)

@@ -8,12 +8,12 @@ from agnav_host.planning.base import DeadlineMissed, NoPathFound
 from agnav_host.planning._grid import OccupancyGrid
 from agnav_host.sim import load_scenario, run_scenario
 
-ISSUE_NAMES = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]
+REFERENCE_PLANNERS = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]
 
 
 def test_registry_has_the_issue_names_and_builds_each():
-    assert planner_names()[: len(ISSUE_NAMES)] == ISSUE_NAMES  # later planners (timed) come after
-    for n in ISSUE_NAMES:
+    assert planner_names()[: len(REFERENCE_PLANNERS)] == REFERENCE_PLANNERS  # later planners (timed) come after
+    for n in REFERENCE_PLANNERS:
         p = make_planner(n, RobotSpec())
         assert p.name == n
         p.reset()
@@ -62,7 +62,7 @@ def test_astar_is_bounded():
         g.plan((0.0, 0.0), (3.0, 0.0), 0.3, margin_cells=10)
 
 
-@pytest.mark.parametrize("name", ISSUE_NAMES)
+@pytest.mark.parametrize("name", REFERENCE_PLANNERS)
 def test_every_planner_reaches_the_goal_on_corridor_obstacles(name):
     r = run_scenario(load_scenario("corridor_obstacles"), name, seed=0)
     end = r.trajectory[-1]

@@ -1,4 +1,4 @@
-"""Time-critical planning (issue 9, ref 003): polynomials, limits, tracking law, deviation point,
+"""Time-critical planning (ref 003): polynomials, limits, tracking law, deviation point,
 catch-up, moving obstacles in space-time, several robots, and the planner in the simulator."""
 
 import math
