@@ -115,7 +115,7 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     if inc <= 0 or np.any(d <= 0):
         bad = int(np.argmax(d <= 0)) if np.any(d <= 0) else len(d) - 1
         raise ScanFileError(f"{p}:{line_of[bad + 1]}: angles must be strictly ascending "
-                            f"(angle {ang[bad + 1]!r} after {ang[bad]!r} on line {line_of[bad]})")
+                            f"(angle {angles[bad + 1]!r} after {angles[bad]!r} on line {line_of[bad]})")
     if np.max(np.abs(d - inc)) > 1e-6 + 1e-3 * inc:
         bad = int(np.argmax(np.abs(d - inc)))
         raise ScanFileError(f"{p}:{line_of[bad + 1]}: angles are not evenly spaced (step {d[bad]:.6g} rad before "

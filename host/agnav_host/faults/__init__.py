@@ -23,6 +23,9 @@ def all_cases() -> list[FaultCase]:
     except ImportError:
         FIRMWARE_CASES = ()
     cases += FIRMWARE_CASES
+    from .laser_faults import LASER_CASES
+
+    cases += LASER_CASES
     from .command_faults import COMMAND_CASES, SIGNING_CASES
 
     cases += COMMAND_CASES

@@ -261,6 +261,15 @@ class PlannerHost:
 
             self.localiser = localiser_for(sc.meta, sc.start, sc.laser.mount)
         self._odo_stamp_ms = -1
+        # The laser is checked before anything plans on it (perception._health); a fault holds the
+        # robot with zero setpoints until the laser is healthy again. laser_fault (tests and the
+        # fault suite) turns each true scan into what a broken laser would deliver.
+        from ..perception._health import LaserWatchdog
+
+        self.laser_health = LaserWatchdog()
+        self.laser_faults_reported = 0
+        self.laser_fault: Callable[[LaserScan, float], LaserScan] | None = None
+        self.events: list[tuple[int, str]] = []  # (t_us, text): what the host decided and why
         # optional: more Observation.extras for the planner at each control step (e.g. a stand-in for a
         # tracker's moving-obstacle tracks in a benchmark); called with the session
         self.observation_extras: Callable[[SilSession], dict[str, object]] | None = None
@@ -309,9 +318,15 @@ class PlannerHost:
         if o is not None and o.time_boot_ms != self._odo_stamp_ms:
             self._odo_stamp_ms = o.time_boot_ms
             loc.odometry(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
-        self._scan = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
-        loc.scan(self._scan.ranges_m, self._scan.angles_rad, s.t_s, self._scan.range_max_m)
+        self._scan = self._read_laser(s)
+        if self.laser_health.update(self._scan, s.t_s).ok:  # a failed laser must not move the pose
+            loc.scan(self._scan.ranges_m, self._scan.angles_rad, s.t_s, self._scan.range_max_m)
         return loc.pose_at(s.t_s)
+
+    def _read_laser(self, s: SilSession) -> LaserScan:
+        assert self.sc.laser is not None
+        scan = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
+        return scan if self.laser_fault is None else self.laser_fault(scan, s.t_s)
 
     def __call__(self, s: SilSession, t_us: int) -> None:
         h = s.host
@@ -332,7 +347,14 @@ class PlannerHost:
         goal = self.sc.goals[min(self.goal_index, len(self.sc.goals) - 1)]
         scan = None
         if self.sc.laser is not None:
-            true = self._scan if self.localiser is not None else self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
+            true = self._scan if self.localiser is not None else self._read_laser(s)
+            health = self.laser_health.health if self.localiser is not None else self.laser_health.update(true, s.t_s)
+            if not health.ok:  # the laser has failed: hold the robot, say why once per fault
+                if self.laser_faults_reported < self.laser_health.faults:
+                    self.laser_faults_reported = self.laser_health.faults
+                    self.events.append((t_us, f"laser fault: {health.reason}; holding the robot"))
+                h.setpoint(0, 0)
+                return
             scan = LaserScan(true.angle_min_rad, true.angle_increment_rad, true.ranges_m, true.range_max_m, true.stamp_s,
                              pose.compose(self.sc.laser.mount))
         o = h.odometry
