@@ -10,6 +10,8 @@ at 10 Hz). Prints:
   - flash and static RAM per module and in total (linker map, tools/fw_size.py);
   - worst run time of each scheduler task as the firmware itself measured it (NAMED_VALUE_INT
     "T_<task>", us, 4 us resolution) and the control tick in cycles;
+  - flash of the default `megaatmega2560` build (the flash target's), and the control task's worst
+    period (gap between ticks) with a 20 Hz host: no key, key + SIGN_TELEM 1, key + SIGN_TELEM 0;
   - per-function cycles from the non-LTO `megaatmega2560_profile` build (where the time goes);
   - encoder ISR cycles (PCINT2 vector entry to return), staggered edges and all 4 at once;
   - the highest single-encoder edge rate with zero lost counts (sweep);
@@ -89,6 +91,44 @@ def symbol_addrs(elf: Path, names: list[str]) -> list[str]:
     return args
 
 
+def control_period_us(elf: Path, key: bytes | None, sign_telem: int, seconds: float = 4.0) -> tuple[int, int]:
+    """Worst gap between two control ticks (watchdog kicks, us) and watchdog resets, with a 20 Hz
+    host (HEARTBEAT + setpoint), signing key pushed when key is given, parameter SIGN_TELEM set.
+    The same rig as hil/tests/test_avr_safety.py (hil/simavr/avr_sil.c)."""
+    from agnav_host.link.keys import setup_signing_message
+    from agnav_host.sil import Firmware
+
+    d = dialect()
+
+    def codec(k: bytes | None):
+        mav = d.MAVLink(None, srcSystem=255, srcComponent=190)
+        if k is not None:
+            mav.signing.secret_key, mav.signing.sign_outgoing, mav.signing.link_id = k, True, 1
+            mav.signing.timestamp = int((1.8e9 - 1420070400) * 100_000)
+        return mav
+
+    def host(fw, us: int, mav) -> None:
+        end, seq = fw.time_us + us, 0
+        while fw.time_us < end:
+            seq += 1
+            fw.uart_write(d.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3).pack(mav))
+            fw.uart_write(d.MAVLink_agnav_drive_setpoint_message(1, 1, 0, 0, 0, 0, 0, seq & 0xFFFF).pack(mav))
+            fw.step_to(min(end, fw.time_us + 50_000))
+            fw.take_triggers()
+            fw.uart_read()
+
+    with Firmware(backend="avr", elf=elf) as fw:
+        fw.set_stop_on_trigger(False)
+        host(fw, 100_000, codec(None))
+        fw.param_set("SIGN_TELEM", sign_telem)
+        if key is not None:
+            fw.uart_write(setup_signing_message(d, key, 1, unix_s=1.8e9).pack(codec(None)))
+        host(fw, 1_000_000, codec(key))
+        fw.kick_gap_max_us()
+        host(fw, int(seconds * 1e6), codec(key))
+        return fw.kick_gap_max_us(), fw.reset_count
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds of the main run")
@@ -145,6 +185,23 @@ def main(argv=None) -> int:
         say(f"sonar ring: {hz:.2f} full 12-sensor rings per second (target >= {TARGETS['ring_hz']}): "
             f"{'OK' if hz >= TARGETS['ring_hz'] else 'UNDER'}")
     say(f"simavr speed: {args.seconds / wall:.2f}x real time ({args.seconds:.1f} simulated s in {wall:.2f} s wall)")
+
+    default_elf = build("megaatmega2560")
+    sys.path.insert(0, str(REPO / "tools"))
+    import fw_size  # noqa: E402
+
+    d_flash, d_ram = fw_size.totals(default_elf)
+    say("")
+    say(f"Default `megaatmega2560` build (the one the flash target is for): flash {d_flash} B of "
+        f"{TARGETS['flash_B']} B ({'OK' if d_flash <= TARGETS['flash_B'] else 'OVER'}), static RAM {d_ram} B")
+    say("")
+    say("## Control task period (worst gap between ticks, default build, 20 Hz host, 4 simulated s)")
+    say("| signing | SIGN_TELEM | worst period ms | watchdog resets |")
+    say("|---|---:|---:|---:|")
+    key = bytes(range(1, 33))
+    for label, k, st in (("no key", None, 1), ("key set", key, 1), ("key set", key, 0)):
+        gap, resets = control_period_us(default_elf, k, st)
+        say(f"| {label} | {st} | {gap / 1000:.1f} | {resets} |")
 
     prof_elf = build("megaatmega2560_profile")
     names = ["task_control", "encoder_update", "encoder_snapshot", "health_encoders", "odom_update_diff",

@@ -461,21 +461,25 @@ static void task_telemetry_1hz(void)
         mavlink_msg_sys_status_pack(link_sysid(), link_compid(), &msg, present, present, healthy, 0u, 0u, -1, -1, 0u,
                                     ls->rx_errors, ls->rx_refused, ls->rx_unsigned, ls->rx_bad_signature, ls->rx_replay,
                                     0u, 0u, 0u);
-    } else if (phase == 2u) {
-        /* Which sensor failed how: health.h bit layout. */
-        static const char health_name[10] = "HEALTH"; /* the pack copies all 10 bytes of the field */
-        mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), health_name,
-                                         (int32_t)health_bits());
     } else {
-        /* One scheduler task's worst run time per second, round robin (NAMED_VALUE_INT "T_<name>", us). */
-        char name[10] = {'T', '_', 0, 0, 0, 0, 0, 0, 0, 0};
-        const char *n = TASKS[s_stats_next].name;
-        for (uint8_t k = 0; k < 8u && n[k] != '\0'; k++) {
-            name[2u + k] = n[k];
+        /* Phase 2: which sensor failed how (NAMED_VALUE_INT "HEALTH", health.h bit layout).
+         * Phase 3: one scheduler task's worst run time per second, round robin ("T_<name>", us).
+         * One pack call for both (the pack copies all 10 bytes of the name). */
+        char name[10] = {'H', 'E', 'A', 'L', 'T', 'H', 0, 0, 0, 0};
+        int32_t value = (int32_t)health_bits();
+        if (phase == 3u) {
+            const char *n = TASKS[s_stats_next].name;
+            name[0] = 'T';
+            name[1] = '_';
+            bool end = false;
+            for (uint8_t k = 0; k < 8u; k++) {
+                end = end || n[k] == '\0';
+                name[2u + k] = end ? '\0' : n[k];
+            }
+            value = (int32_t)s_stats[s_stats_next].worst_us;
+            s_stats_next = (uint8_t)((s_stats_next + 1u) % TASK_COUNT);
         }
-        mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), name,
-                                         (int32_t)s_stats[s_stats_next].worst_us);
-        s_stats_next = (uint8_t)((s_stats_next + 1u) % TASK_COUNT);
+        mavlink_msg_named_value_int_pack(link_sysid(), link_compid(), &msg, hal_time_ms(), name, value);
     }
     send(&msg);
 }

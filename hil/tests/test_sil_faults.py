@@ -3,6 +3,8 @@ detected, reported and ends in a stop; docs/safety.md describes each one."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from _sil_logic import decode
@@ -197,11 +199,22 @@ def test_corrupt_calibration_falls_back_to_defaults_with_error():
         assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
 
 
+def _params_in_table() -> int:
+    """Rows of the PARAMS table in firmware/src/main.c (as tools/gen_param_doc.py reads them)."""
+    import importlib.util
+
+    root = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location("gen_param_doc", root / "tools" / "gen_param_doc.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return len(list(mod.ROW.finditer((root / "firmware" / "src" / "main.c").read_text(encoding="utf-8"))))
+
+
 def test_corrupt_parameters_fall_back_to_defaults_with_error():
     with Firmware({"SONAR_COUNT": 0, "MAX_SPEED_MM_S": 700}) as fw:
         assert fw.param_get("MAX_SPEED_MM_S") == 700
         addr, n = fw.eeprom_record("params")
-        assert n == 4 + 4 * 40 + 2
+        assert n == 4 + 4 * _params_in_table() + 2, f"record of {n} B for {_params_in_table()} parameters"
         fw.eeprom_corrupt(addr + 4 + 4 * 10, 1, 0x01)  # a bit of MAX_SPEED_MM_S's stored value
         fw.reboot()
         msgs = Host(fw).run(500_000)

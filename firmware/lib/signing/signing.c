@@ -24,6 +24,10 @@ static uint64_t s_wr_ts;
 
 enum { WR_NONE = 0, WR_KEY = 1, WR_TS = 2 };
 
+/* Timestamp bytes in EEPROM are little-endian, as every target stores a uint64_t: a copy of
+ * its first 6 bytes is the record (no 64-bit shifts, ~0.2 KB of AVR code). */
+_Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "timestamp record = the low 6 bytes in memory");
+
 static bool accept_unsigned(const mavlink_status_t *status, uint32_t msgid)
 {
     (void)status;
@@ -100,9 +104,7 @@ static void load_timestamp(void)
             continue;
         }
         uint64_t ts = 0u;
-        for (uint8_t k = 0; k < 6u; k++) {
-            ts |= (uint64_t)rec[k] << (8u * k);
-        }
+        memcpy(&ts, rec, 6u);
         if (ts >= best) {
             best = ts;
             best_slot = i;
@@ -161,7 +163,7 @@ static uint8_t record_byte(uint8_t pos)
         return (uint8_t)(s_wr_crc >> (8u * (pos - 34u)));
     }
     if (pos < 6u) {
-        return (uint8_t)(s_wr_ts >> (8u * pos));
+        return ((const uint8_t *)&s_wr_ts)[pos];
     }
     return (uint8_t)(s_wr_crc >> (8u * (pos - 6u)));
 }
@@ -175,12 +177,8 @@ void signing_tick(uint32_t now_ms)
     }
     s_sign.timestamp += (uint64_t)dt_ms * 100u;
     if (s_wr_kind == WR_NONE && s_state == SIGNING_ON && s_sign.timestamp >= s_saved_ts + SIGNING_TS_SAVE_INTERVAL) {
-        uint8_t rec[6];
         s_wr_ts = s_sign.timestamp;
-        for (uint8_t k = 0; k < 6u; k++) {
-            rec[k] = (uint8_t)(s_wr_ts >> (8u * k));
-        }
-        s_wr_crc = crc16_ccitt_false(rec, 6u);
+        s_wr_crc = crc16_ccitt_false(&s_wr_ts, 6u);
         s_wr_kind = WR_TS;
         s_wr_pos = 0u;
     }

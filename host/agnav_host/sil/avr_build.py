@@ -64,9 +64,15 @@ def build_avr_library(out: Path = AVR_LIB_PATH, force: bool = False) -> Path:
 
 def _firmware_inputs() -> list[Path]:
     fw = REPO_ROOT / "firmware"
-    out = [p for d in (fw / "src", fw / "lib") for p in d.rglob("*") if p.suffix in (".c", ".h")]
+    out = [p for d in (fw / "src", fw / "lib") for p in d.rglob("*") if p.suffix in (".c", ".h", ".S")]
     out += [REPO_ROOT / "platformio.ini", REPO_ROOT / "protocol" / "agnav.xml"]
     return out
+
+
+def pio_elf_path() -> Path:
+    """Where ``pio run -e megaatmega2560`` puts the ELF: PIO_ELF_PATH, or under $PLATFORMIO_BUILD_DIR."""
+    bd = os.environ.get("PLATFORMIO_BUILD_DIR")
+    return Path(bd) / "megaatmega2560" / "firmware.elf" if bd else PIO_ELF_PATH
 
 
 def build_avr_elf(force: bool = False) -> Path:
@@ -80,11 +86,12 @@ def build_avr_elf(force: bool = False) -> Path:
     env = dict(os.environ)
     env.setdefault("PLATFORMIO_CORE_DIR", str(REPO_ROOT / ".pio-core"))
     r = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, env=env)
-    if r.returncode != 0 or not PIO_ELF_PATH.exists():
+    elf = pio_elf_path()
+    if r.returncode != 0 or not elf.exists():
         raise SilBuildError(f"AVR firmware build failed ({shlex.join(cmd)}):\n{r.stdout[-4000:]}\n{r.stderr[-4000:]}")
     AVR_ELF_PATH.parent.mkdir(parents=True, exist_ok=True)
     tmp = AVR_ELF_PATH.with_name(AVR_ELF_PATH.name + f".tmp{os.getpid()}")
-    shutil.copyfile(PIO_ELF_PATH, tmp)
+    shutil.copyfile(elf, tmp)
     os.replace(tmp, AVR_ELF_PATH)  # a fresh mtime: newer than the sources it was built from
     return AVR_ELF_PATH
 

@@ -54,16 +54,15 @@ static uint32_t s_ms_last_us; /* s_ms_last * 1000, never above the clock */
 __attribute__((noinline)) uint32_t hal_time_ms(void)
 {
     uint32_t us = hal_time_us();
-    uint32_t d_us = us - s_ms_last_us;
-    if (us < s_ms_last_us || d_us > 0xFFFFu) { /* clock wrapped (71 min) or a long gap */
+    if (us < s_ms_last_us || us - s_ms_last_us > 0xFFFFu) { /* clock wrapped (71 min) or a long gap */
         s_ms_last = us / 1000u;
         s_ms_last_us = s_ms_last * 1000u;
-        return s_ms_last;
     }
-    /* d_us * 65 / 2^16 is d_us / 1000 or one less (65 / 2^16 is 0.8 % under 1 / 1000: at most
-     * 0.54 under over 16 bits); the remainder check adds the one. The >> 16 is a register move. */
-    uint16_t q = (uint16_t)(((uint32_t)(uint16_t)d_us * 65u) >> 16);
-    if ((uint16_t)((uint16_t)d_us - q * 1000u) >= 1000u) {
+    /* d * 65 / 2^16 is d / 1000 or one less for any 16-bit d (65 / 2^16 is 0.8 % under 1 / 1000:
+     * at most 0.54 under); the remainder check adds the one. The >> 16 is a register move. */
+    uint16_t d_us = (uint16_t)(us - s_ms_last_us);
+    uint16_t q = (uint16_t)(((uint32_t)d_us * 65u) >> 16);
+    if ((uint16_t)(d_us - q * 1000u) >= 1000u) {
         q++;
     }
     s_ms_last += q;
