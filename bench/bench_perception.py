@@ -46,6 +46,7 @@ from typing import Callable
 
 import numpy as np
 
+from agnav_host.sim.metrics import signed_offset_m
 from agnav_host.perception import (
     GroundParams,
     ProximityFollower,
@@ -350,17 +351,6 @@ def bench_holes(seeds: tuple[int, ...] = (0, 1, 2)) -> list[dict[str, object]]:
                 results.append({"hole": f"{lx}x{wy}x{dz}", "approach_deg": approach_deg, "seed": seed, "detected": ok,
                                 "margin_m": (t_reach - first[0]) * 0.5 if first else float("nan")})
     return results
-
-
-def signed_offset_m(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """Signed distance (m) of points from a polyline, left of its direction positive."""
-    a, d = line[:-1], np.diff(line, axis=0)
-    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
-    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / (d**2).sum(axis=1)[None, :], 0.0, 1.0)
-    ex, ey = qx - u * d[None, :, 0], qy - u * d[None, :, 1]
-    j = np.argmin(np.hypot(ex, ey), axis=1)
-    i = np.arange(len(j))
-    return np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
 
 
 RUTS_SETTLE_X_M = 3.0  # ruts: samples before the robot passes this x are the capture

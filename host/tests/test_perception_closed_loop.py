@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from agnav_host.sim.metrics import signed_offset_m
 from agnav_host.perception import (
     GroundGuard,
     GroundGuardParams,
@@ -27,17 +28,6 @@ def _mount(sc: Scenario) -> TiltedMount:
     tl = sc.tilted_laser
     assert tl is not None
     return TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
-
-
-def _signed_offset_m(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """Signed distance of points from a polyline, left of its direction positive."""
-    a, d = line[:-1], np.diff(line, axis=0)
-    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
-    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / (d**2).sum(axis=1)[None, :], 0.0, 1.0)
-    ex, ey = qx - u * d[None, :, 0], qy - u * d[None, :, 1]
-    j = np.argmin(np.hypot(ex, ey), axis=1)
-    i = np.arange(len(j))
-    return np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
 
 
 class _Recorder:
@@ -75,7 +65,7 @@ def test_rut_follower_keeps_to_the_ruts_midline_in_closed_loop():
     res = run_scenario(sc, "rut_follower", seed=0, duration_s=22.0, controller=ctrl)
     tr = res.trajectory
     assert res.end_reason == "timeout" and tr[-1, 1] > 7.0  # about 8 m along the curvy track
-    e = _signed_offset_m(tr[:, 1], tr[:, 2], np.asarray(sc.world.ruts[0].points))
+    e = signed_offset_m(tr[:, 1], tr[:, 2], np.asarray(sc.world.ruts[0].points))
     # starts 0.15 m left of the midline in y, where the track runs at atan(2 pi / 16) = 21 deg
     assert e[0] == pytest.approx(0.15 * math.cos(math.atan(2 * math.pi / 16)), abs=0.005)
     settled = tr[:, 1] > 3.0

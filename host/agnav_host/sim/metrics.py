@@ -20,7 +20,7 @@ import numpy as np
 
 from ..types import FloatArray, norm_angle_rad
 
-__all__ = [
+__all__ = ["signed_offset_m", 
     "SUMMARY_KEYS",
     "path_length_m",
     "bending_energy",
@@ -178,3 +178,15 @@ class RunMetrics:
             v = getattr(self, k)
             out[k] = round(v, ndigits) if isinstance(v, float) else v
         return out
+
+
+def signed_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> FloatArray:
+    """Signed distance (m) of points (px[i], py[i]) from a polyline line (k, 2), positive left of
+    its direction: how far a robot runs beside a row, a rut's midline or a planned path."""
+    a, d = line[:-1], np.diff(line, axis=0)
+    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
+    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / (d**2).sum(axis=1)[None, :], 0.0, 1.0)
+    ex, ey = qx - u * d[None, :, 0], qy - u * d[None, :, 1]
+    j = np.argmin(np.hypot(ex, ey), axis=1)
+    i = np.arange(len(j))
+    return np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
