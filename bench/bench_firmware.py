@@ -11,7 +11,8 @@ at 10 Hz). Prints:
   - worst run time of each scheduler task as the firmware itself measured it (NAMED_VALUE_INT
     "T_<task>", us, 4 us resolution) and the control tick in cycles;
   - flash of the default `megaatmega2560` build (the flash target's), and the control task's worst
-    period (gap between ticks) with a 20 Hz host: no key, key + SIGN_TELEM 1, key + SIGN_TELEM 0;
+    period (gap between ticks) with a 20 Hz host: no key, key + SIGN_TELEM 1, key + SIGN_TELEM 0, and both again with a COMMAND_LONG
+    every 0.5 s (signed answers; acks and receive errors show that no frame was lost);
   - per-function cycles from the non-LTO `megaatmega2560_profile` build (where the time goes);
   - encoder ISR cycles (PCINT2 vector entry to return), staggered edges and all 4 at once;
   - the highest single-encoder edge rate with zero lost counts (sweep);
@@ -35,7 +36,7 @@ from agnav_host.protocol import dialect  # noqa: E402
 HARNESS = REPO / "build" / "bin" / "avr_harness"
 F_CPU = 16_000_000
 TARGETS = {"flash_B": 48 * 1024, "ram_B": 3 * 1024, "tick_us": 1000, "isr_cycles": 60,
-           "edge_rate_hz": 40_000, "ring_hz": 10.0}
+           "edge_rate_hz": 40_000, "ring_hz": 10.0, "period_ms": 21.0}
 
 
 # PLATFORMIO_BUILD_DIR is honoured (several engineers build in one checkout); the non-LTO build
@@ -91,10 +92,14 @@ def symbol_addrs(elf: Path, names: list[str]) -> list[str]:
     return args
 
 
-def control_period_us(elf: Path, key: bytes | None, sign_telem: int, seconds: float = 4.0) -> tuple[int, int]:
+def control_period_us(elf: Path, key: bytes | None, sign_telem: int, seconds: float = 4.0,
+                      commands: bool = False) -> tuple[int, int, str]:
     """Worst gap between two control ticks (watchdog kicks, us) and watchdog resets, with a 20 Hz
     host (HEARTBEAT + setpoint), signing key pushed when key is given, parameter SIGN_TELEM set.
-    The same rig as hil/tests/test_avr_safety.py (hil/simavr/avr_sil.c)."""
+    The same rig as hil/tests/test_avr_safety.py (hil/simavr/avr_sil.c). With commands, the host
+    also sends a COMMAND_LONG (arm) every 0.5 s, which the robot answers with a COMMAND_ACK (signed
+    when SIGN_TELEM is 1). Third value: "acks/commands, SYS_STATUS receive errors" (frames lost
+    in the UART queue would show as missing acks or CRC / signature errors)."""
     from agnav_host.link.keys import setup_signing_message
     from agnav_host.sil import Firmware
 
@@ -107,15 +112,27 @@ def control_period_us(elf: Path, key: bytes | None, sign_telem: int, seconds: fl
             mav.signing.timestamp = int((1.8e9 - 1420070400) * 100_000)
         return mav
 
+    rx = d.MAVLink(None)
+    rx.robust_parsing = True
+    tally = {"sent": 0, "acks": 0, "errors": 0}
+
     def host(fw, us: int, mav) -> None:
         end, seq = fw.time_us + us, 0
         while fw.time_us < end:
             seq += 1
             fw.uart_write(d.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3).pack(mav))
             fw.uart_write(d.MAVLink_agnav_drive_setpoint_message(1, 1, 0, 0, 0, 0, 0, seq & 0xFFFF).pack(mav))
+            if commands and seq % 10 == 0:
+                fw.uart_write(d.MAVLink_command_long_message(1, 1, d.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                                             1, 0, 0, 0, 0, 0, 0).pack(mav))
+                tally["sent"] += 1
             fw.step_to(min(end, fw.time_us + 50_000))
             fw.take_triggers()
-            fw.uart_read()
+            for m in rx.parse_buffer(fw.uart_read()) or []:
+                if m.get_type() == "COMMAND_ACK":
+                    tally["acks"] += 1
+                elif m.get_type() == "SYS_STATUS":
+                    tally["errors"] = (m.errors_comm + m.errors_count2 + m.errors_count3 + m.errors_count4)
 
     with Firmware(backend="avr", elf=elf) as fw:
         fw.set_stop_on_trigger(False)
@@ -123,10 +140,11 @@ def control_period_us(elf: Path, key: bytes | None, sign_telem: int, seconds: fl
         fw.param_set("SIGN_TELEM", sign_telem)
         if key is not None:
             fw.uart_write(setup_signing_message(d, key, 1, unix_s=1.8e9).pack(codec(None)))
-        host(fw, 1_000_000, codec(key))
+        mav = codec(key)  # one signing stream throughout (a second codec would replay its timestamps)
+        host(fw, 1_000_000, mav)
         fw.kick_gap_max_us()
-        host(fw, int(seconds * 1e6), codec(key))
-        return fw.kick_gap_max_us(), fw.reset_count
+        host(fw, int(seconds * 1e6), mav)
+        return fw.kick_gap_max_us(), fw.reset_count, f"{tally['acks']}/{tally['sent']}, {tally['errors']}"
 
 
 def main(argv=None) -> int:
@@ -196,17 +214,19 @@ def main(argv=None) -> int:
         f"{TARGETS['flash_B']} B ({'OK' if d_flash <= TARGETS['flash_B'] else 'OVER'}), static RAM {d_ram} B")
     say("")
     say("## Control task period (worst gap between ticks, default build, 20 Hz host, 4 simulated s)")
-    say("| signing | SIGN_TELEM | worst period ms | watchdog resets |")
-    say("|---|---:|---:|---:|")
+    say("| signing | SIGN_TELEM | host also sends | worst period ms | watchdog resets | acks/commands, rx errors |")
+    say("|---|---:|---|---:|---:|---|")
     key = bytes(range(1, 33))
-    for label, k, st in (("no key", None, 1), ("key set", key, 1), ("key set", key, 0)):
-        gap, resets = control_period_us(default_elf, k, st)
-        say(f"| {label} | {st} | {gap / 1000:.1f} | {resets} |")
+    for label, k, st, cmd in (("no key", None, 1, False), ("key set", key, 1, False), ("key set", key, 0, False),
+                              ("key set", key, 1, True), ("key set", key, 0, True)):
+        gap, resets, lost = control_period_us(default_elf, k, st, commands=cmd)
+        say(f"| {label} | {st} | {'COMMAND_LONG every 0.5 s' if cmd else '-'} | {gap / 1000:.1f} | {resets} | {lost} |")
+    say(f"target: worst period <= {TARGETS['period_ms']} ms with a key")
 
     prof_elf = build("megaatmega2560_profile")
     names = ["task_control", "encoder_update", "encoder_snapshot", "health_encoders", "odom_update_diff",
              "behaviour_step", "drive_apply",
-             "task_telemetry_50hz", "task_telemetry_10hz", "task_link", "sonar_ring_step", "link_send"]
+             "task_telemetry_50hz", "task_telemetry", "task_link", "sonar_ring_step", "link_send"]
     _, perr, _ = run(prof_elf, min(args.seconds, 3.0), stim + symbol_addrs(prof_elf, names))
     say("")
     say("## Where the time goes (non-LTO build, cycles per call)")

@@ -372,41 +372,6 @@ static void task_telemetry_50hz(void)
     }
 }
 
-static void send_encoder_status(uint32_t now_ms);
-
-static void task_telemetry_10hz(void)
-{
-    uint32_t now_ms = hal_time_ms();
-    mavlink_message_t msg;
-    odom_pose_t pose;
-    odom_get(&pose);
-    mavlink_msg_agnav_odometry_pack(link_sysid(), link_compid(), &msg, now_ms, pose.x_mm, pose.y_mm,
-                                    (int16_t)pose.heading_cdeg, (int16_t)pose.speed_mm_s,
-                                    (int16_t)pose.yaw_rate_cdeg_s);
-    send(&msg);
-
-    /* Encoders at 2 Hz (odometry above already carries the motion at 10 Hz), and the standard
-     * LOCAL_POSITION_NED at 2 Hz for ground stations (NED from REP-103: y_east = -y_left). */
-    static uint8_t s_enc_div;
-    if (++s_enc_div >= 5u) {
-        s_enc_div = 0u;
-        send_encoder_status(now_ms);
-    } else if (s_enc_div == 2u) {
-        int32_t c = behaviour_cos_q14(pose.heading_cdeg), sn = behaviour_sin_q14(pose.heading_cdeg);
-        float v = (float)pose.speed_mm_s * 0.001f;
-        mavlink_msg_local_position_ned_pack(link_sysid(), link_compid(), &msg, now_ms, (float)pose.x_mm * 0.001f,
-                                            -(float)pose.y_mm * 0.001f, 0.0f, v * (float)c / 16384.0f,
-                                            -v * (float)sn / 16384.0f, 0.0f);
-        send(&msg);
-    }
-
-    if (s_ring != 0 && s_in.sonar.seq != 0u) {
-        mavlink_msg_agnav_sonar_ring_pack(link_sysid(), link_compid(), &msg, s_frame_ms, s_in.sonar.ranges_mm,
-                                          s_in.sonar.status, s_in.sonar.count, (uint16_t)s_in.sonar.seq);
-        send(&msg);
-    }
-}
-
 static void send_encoder_status(uint32_t now_ms)
 {
     mavlink_message_t msg;
@@ -426,17 +391,16 @@ static void send_encoder_status(uint32_t now_ms)
     send(&msg);
 }
 
-#define TASK_COUNT 6u
+#define TASK_COUNT 5u
+#define TASK_CONTROL 2u /* row of task_control in TASKS */
 static const sched_task_t TASKS[TASK_COUNT]; /* the table, defined below */
 static sched_stats_t s_stats[TASK_COUNT];
 static uint8_t s_stats_next;
 
-/* The 1 Hz messages, one per 250 ms call (HEARTBEAT first, at t = 0, 1 s, ...): with signing on
- * each frame costs ~5.7 ms of SHA-256 on the AVR, and four in one call held the control task
- * off for ~23 ms (docs/safety.md "Signing"). */
+/* The 1 Hz messages, one per call (HEARTBEAT first, at t = 0, 1 s, ...). */
 static uint8_t s_telem1_phase;
 
-static void task_telemetry_1hz(void)
+static void send_telemetry_1hz(void)
 {
     mavlink_message_t msg;
     uint8_t phase = s_telem1_phase;
@@ -484,14 +448,80 @@ static void task_telemetry_1hz(void)
     send(&msg);
 }
 
+/* The 10 Hz and 1 Hz telemetry: one frame per 20 ms call, in a fixed rotation of five 20 ms
+ * slots per 100 ms round (docs/safety.md "Signing": with SIGN_TELEM each signed frame costs
+ * ~5.7 ms of SHA-256 on the AVR; one per tick, after the control tick and BEHAVIOUR_STATUS,
+ * leaves the rest of the 20 ms period to the link task's verification of received frames):
+ *   slot 0: the 1 Hz messages, one per 200 ms (rounds 0, 2, 4, 6 of each second)
+ *   slot 1: AGNAV_ODOMETRY (10 Hz)
+ *   slot 2: AGNAV_ENCODER_STATUS (2 Hz, rounds 4, 9) or LOCAL_POSITION_NED (2 Hz, rounds 1, 6)
+ *   slot 3: AGNAV_SONAR_RING (10 Hz, when fitted)
+ *   slot 4: nothing */
+static uint8_t s_telem_slot;  /* 0..4 */
+static uint8_t s_telem_round; /* 0..9 */
+static bool s_telem_yielded;  /* the last call left its slot to the link */
+
+static void task_telemetry(void)
+{
+    if (link_rx_waiting() && !s_telem_yielded) {
+        s_telem_yielded = true; /* a received frame needs the time (docs/safety.md "Signing"): */
+        return;                 /* this slot next tick, never two ticks in a row */
+    }
+    s_telem_yielded = false;
+    uint8_t slot = s_telem_slot;
+    uint8_t round = s_telem_round;
+    if (slot >= 4u) {
+        s_telem_slot = 0u;
+        s_telem_round = round >= 9u ? 0u : (uint8_t)(round + 1u);
+    } else {
+        s_telem_slot = (uint8_t)(slot + 1u);
+    }
+    uint32_t now_ms = hal_time_ms();
+    mavlink_message_t msg;
+    if (slot == 0u) {
+        if ((round & 1u) == 0u && round < 8u) {
+            send_telemetry_1hz();
+        }
+        return;
+    }
+    if (slot == 3u) {
+        if (s_ring != 0 && s_in.sonar.seq != 0u) {
+            mavlink_msg_agnav_sonar_ring_pack(link_sysid(), link_compid(), &msg, s_frame_ms, s_in.sonar.ranges_mm,
+                                              s_in.sonar.status, s_in.sonar.count, (uint16_t)s_in.sonar.seq);
+            send(&msg);
+        }
+        return;
+    }
+    if (slot == 4u) {
+        return;
+    }
+    odom_pose_t pose;
+    odom_get(&pose);
+    if (slot == 1u) {
+        mavlink_msg_agnav_odometry_pack(link_sysid(), link_compid(), &msg, now_ms, pose.x_mm, pose.y_mm,
+                                        (int16_t)pose.heading_cdeg, (int16_t)pose.speed_mm_s,
+                                        (int16_t)pose.yaw_rate_cdeg_s);
+        send(&msg);
+    } else if (round == 4u || round == 9u) {
+        send_encoder_status(now_ms);
+    } else if (round == 1u || round == 6u) {
+        /* The standard LOCAL_POSITION_NED for ground stations (NED from REP-103: y_east = -y_left). */
+        int32_t c = behaviour_cos_q14(pose.heading_cdeg), sn = behaviour_sin_q14(pose.heading_cdeg);
+        float v = (float)pose.speed_mm_s * 0.001f;
+        mavlink_msg_local_position_ned_pack(link_sysid(), link_compid(), &msg, now_ms, (float)pose.x_mm * 0.001f,
+                                            -(float)pose.y_mm * 0.001f, 0.0f, v * (float)c / 16384.0f,
+                                            -v * (float)sn / 16384.0f, 0.0f);
+        send(&msg);
+    }
+}
+
 /* The static scheduler table: {task, period ms, budget us, name}. */
 static const sched_task_t TASKS[TASK_COUNT] = {
     {task_link, 2u, 600u, "link"},
     {task_sonar, 1u, 300u, "sonar"},
     {task_control, 20u, 1000u, "control"},
     {task_telemetry_50hz, 20u, 300u, "telem50"},
-    {task_telemetry_10hz, 100u, 800u, "telem10"},
-    {task_telemetry_1hz, 250u, 300u, "telem1"},
+    {task_telemetry, 20u, 800u, "telem"},
 };
 _Static_assert(sizeof TASKS / sizeof TASKS[0] == TASK_COUNT, "TASK_COUNT matches the table");
 
@@ -548,6 +578,7 @@ void agnav_setup(void)
     s_out_ms = s_sent_ms = 0u;
     s_stats_next = 0u;
     s_telem1_phase = 0u;
+    s_telem_slot = s_telem_round = 0u;
     s_frame_ms = hal_time_ms();
     defaults();
     params_init(PARAMS, (uint16_t)PARAM_COUNT);
@@ -579,7 +610,8 @@ void agnav_setup(void)
      * reset: on the Mega, opening the USB serial port resets the board (DTR auto-reset), so
      * this is "someone at the robot with a cable". Watchdog / brown-out boots: no window. */
     uint16_t window_ms = (cause == HAL_RESET_POWER_ON || cause == HAL_RESET_EXTERNAL) ? KEY_PROVISION_WINDOW_MS : 0u;
-    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib, window_ms};
+    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib, window_ms,
+                     &s_stats[TASK_CONTROL].next_due_us};
     hal_uart_init(HAL_UART_LINK, 57600u);
     link_init(&lc);
     signing_set_sign_telemetry(p_sign_telem != 0u); /* before the boot report goes out */

@@ -24,6 +24,7 @@ static uint16_t s_param_next = 0xFFFFu; /* next index of a running PARAM_REQUEST
 static uint32_t s_refusal_text_ms;
 static bool s_refusal_text_sent;
 static uint32_t s_provision_until_ms;
+static uint8_t s_sha_waits; /* link_poll calls the frame in the parser has waited (LINK_SHA_MAX_WAITS) */
 
 void link_init(const link_cfg_t *cfg)
 {
@@ -33,6 +34,7 @@ void link_init(const link_cfg_t *cfg)
     s_state.behaviour_enable = LINK_ENABLE_AVOID;
     s_param_next = 0xFFFFu;
     s_refusal_text_sent = false;
+    s_sha_waits = 0u; /* the native SIL re-enters link_init() without reloading the program */
     uint32_t now_ms = hal_time_ms();
     s_provision_until_ms = cfg->provision_window_ms != 0u ? now_ms + cfg->provision_window_ms : 0u;
     signing_init(&s_rx_status, mavlink_get_channel_status(MAVLINK_COMM_0), now_ms);
@@ -489,6 +491,43 @@ void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms)
     }
 }
 
+/* SHA-256 blocks of a MAVLink 2 signature over len payload bytes: key 32 + header 10 +
+ * payload + CRC 2 + link id 1 + timestamp 6, then 0x80 and the 64-bit length. */
+static uint8_t sha_blocks(uint8_t len) { return (uint8_t)(((uint16_t)len + 123u) >> 6); }
+
+static bool sha_fits(uint8_t blocks)
+{
+    return s_cfg.tick_due_us == 0 || (int32_t)(*s_cfg.tick_due_us - hal_time_us()) >=
+                                         (int32_t)((uint16_t)(blocks * SIGNING_BLOCK_US) + SIGNING_MARGIN_US);
+}
+
+static bool tx_signed(void) { return mavlink_get_channel_status(MAVLINK_COMM_0)->signing != NULL; }
+
+/* Whether a frame of len payload bytes may be packed now (its signature's hash fits). */
+static bool tx_fits(uint8_t len) { return !tx_signed() || sha_fits(sha_blocks(len)); }
+
+/* Blocks of the signed answer a received message may get (0 when answers go out unsigned):
+ * COMMAND_ACK, PARAM_VALUE, STATUSTEXT all have <= 68 payload bytes (2 blocks). The streams
+ * (HEARTBEAT, setpoints, RC / manual control) are answered only by a refusal text, at most one
+ * per second, which is not budgeted. */
+static uint8_t answer_blocks(uint32_t msgid)
+{
+    uint16_t id = (uint16_t)msgid;
+    return !tx_signed() || id == MAVLINK_MSG_ID_HEARTBEAT || id == MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT ||
+                   id == MAVLINK_MSG_ID_MANUAL_CONTROL || id == MAVLINK_MSG_ID_RC_CHANNELS_OVERRIDE
+               ? 0u
+               : 2u;
+}
+
+/* link_poll calls the frame now in the parser has waited for a hash window. A frame bigger than
+ * any window (or a tick that never leaves one) is hashed anyway after this many (> one control
+ * period of 2 ms calls): the control tick is late once rather than the link stuck. */
+#define LINK_SHA_MAX_WAITS 12u
+
+/* 2 calls: one wait is normal (the link task runs just before the control tick, with no time
+ * left); two mean the frame also missed the window after the tick. */
+bool link_rx_waiting(void) { return s_sha_waits >= 2u; }
+
 void link_poll(uint32_t now_ms)
 {
     uint8_t buf[32];
@@ -498,12 +537,26 @@ void link_poll(uint32_t now_ms)
             link_feed(buf, n, now_ms);
         }
     } else {
-        /* Each signed frame costs a SHA-256 (~5.7 ms on the AVR): take at most one per call,
-         * byte by byte, so two frames never hold the control task off together. The task runs
-         * every 2 ms; a 57600-baud link delivers a 40-byte frame in ~7 ms. */
+        /* Each signed frame costs a SHA-256 (2-3 blocks of 2.8 ms on the AVR) when its last
+         * signature byte arrives: take at most one frame per call, byte by byte, and hand
+         * that last byte over only when the hash (and a signed answer) ends before the next
+         * control tick; otherwise it stays queued in the UART (nothing lost or reordered) and
+         * a later call takes it. The task runs every 2 ms; a 57600-baud link delivers a
+         * 40-byte frame in ~7 ms. */
         s_frames_done = 0u;
-        while (s_frames_done == 0u && hal_uart_read(HAL_UART_LINK, buf, 1u) == 1u) {
+        while (s_frames_done == 0u) {
+            if (s_rx_status.signature_wait == 1u && s_sha_waits < LINK_SHA_MAX_WAITS &&
+                !sha_fits((uint8_t)(sha_blocks(s_rx_msg.len) + answer_blocks(s_rx_msg.msgid)))) {
+                s_sha_waits++;
+                break;
+            }
+            if (hal_uart_read(HAL_UART_LINK, buf, 1u) != 1u) {
+                break;
+            }
             link_feed(buf, 1u, now_ms);
+        }
+        if (s_frames_done != 0u) {
+            s_sha_waits = 0u;
         }
     }
     if (s_provision_until_ms != 0u && (int32_t)(s_provision_until_ms - now_ms) <= 0) {
@@ -511,7 +564,9 @@ void link_poll(uint32_t now_ms)
         signing_set_provisioning(false);
     }
     signing_tick(now_ms);
-    for (uint8_t k = 0; k < PARAM_SEND_PER_POLL && s_param_next < params_count(); k++) {
+    for (uint8_t k = 0; k < PARAM_SEND_PER_POLL && s_param_next < params_count() &&
+                        tx_fits(MAVLINK_MSG_ID_PARAM_VALUE_LEN);
+         k++) {
         send_param(s_param_next++);
     }
     if (s_param_next >= params_count()) {

@@ -104,9 +104,19 @@ typedef struct {
      * accepted: main opens it only after a power-on or external reset (the USB auto-reset of
      * the Mega, or the reset button), i.e. with someone at the robot. 0 = closed. */
     uint16_t provision_window_ms;
+    /* hal_time_us() at which the 50 Hz control tick is next due (main: its scheduler row's
+     * next_due_us). With a key, a received frame's SHA-256 (and, when SIGN_TELEM signs the
+     * answers, the answer's) starts only when it ends before then (SIGNING_BLOCK_US per block
+     * + SIGNING_MARGIN_US), else the frame waits in the UART queue for a later call
+     * (docs/safety.md "Signing"). NULL = no limit. */
+    const uint32_t *tick_due_us;
 } link_cfg_t;
 
 void link_init(const link_cfg_t *cfg);
+/* A received signed frame has waited more than one call because its hash did not fit before the
+ * control tick: main's telemetry then skips its frame for a tick (never two ticks in a row) to
+ * leave the link a longer window. */
+bool link_rx_waiting(void);
 /* Read and handle everything received so far. now_ms stamps what arrives. */
 void link_poll(uint32_t now_ms);
 link_state_t *link_state(void);

@@ -42,6 +42,19 @@
 #define SIGNING_TS_SAVE_INTERVAL 3000000ULL       /* 30 s in 10 us units */
 #define SIGNING_WRITE_GAP_MS 5u
 
+/* Time of one 64-byte SHA-256 block on this target, with the interrupts that land in it
+ * (agnav_sha256_block: 44 896 cycles = 2806 us at 16 MHz under simavr, +3 % for the encoder,
+ * sonar and UART interrupts), and what the link task adds around a hash (parse, dispatch,
+ * the sonar task that may run before the control tick). link.c starts a hash only when
+ * blocks * SIGNING_BLOCK_US + SIGNING_MARGIN_US fit before the next control tick. */
+#if defined(__AVR__)
+#define SIGNING_BLOCK_US 2900u
+#define SIGNING_MARGIN_US 700u
+#else
+#define SIGNING_BLOCK_US 20u
+#define SIGNING_MARGIN_US 100u
+#endif
+
 typedef enum {
     SIGNING_OFF = 0,         /* no key: unsigned and signed frames accepted, nothing signed */
     SIGNING_ON = 1,          /* key set: only correctly signed, fresh frames accepted */

@@ -46,7 +46,7 @@ void setUp(void)
     sim_reset();
     s_timeout_ms = 500u;
     params_init(TABLE, 1u);
-    link_cfg_t cfg = {1u, 1u, 2460, 2000, 0, 0u};
+    link_cfg_t cfg = {1u, 1u, 2460, 2000, 0, 0u, 0};
     link_init(&cfg);
 }
 

@@ -49,7 +49,7 @@ void setUp(void)
     sim_reset();
     s_timeout_ms = 500u;
     params_init(TABLE, 1u);
-    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, 0u};
+    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, 0u, 0};
     link_init(&cfg);
 }
 

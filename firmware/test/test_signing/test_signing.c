@@ -58,9 +58,9 @@ static void feed(const uint8_t *buf, uint16_t len)
     link_poll(s_now_ms);
 }
 
-static void estop(const uint8_t *key, uint64_t ts, float engage)
+/* An e-stop COMMAND_LONG on the wire in buf; returns its length. */
+static uint16_t estop_frame(const uint8_t *key, uint64_t ts, float engage, uint8_t *buf)
 {
-    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
     mavlink_command_long_t c;
     memset(&c, 0, sizeof c);
     c.target_system = US;
@@ -71,7 +71,13 @@ static void estop(const uint8_t *key, uint64_t ts, float engage)
     s_msg.msgid = MAVLINK_MSG_ID_COMMAND_LONG;
     host_finalize(&s_msg, key, ts, MAVLINK_MSG_ID_COMMAND_LONG_MIN_LEN, MAVLINK_MSG_ID_COMMAND_LONG_LEN,
                   MAVLINK_MSG_ID_COMMAND_LONG_CRC);
-    feed(buf, wire(&s_msg, buf));
+    return wire(&s_msg, buf);
+}
+
+static void estop(const uint8_t *key, uint64_t ts, float engage)
+{
+    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+    feed(buf, estop_frame(key, ts, engage, buf));
 }
 
 static void setup_signing(const uint8_t *sign_with, const uint8_t *new_key, uint64_t ts)
@@ -95,7 +101,7 @@ static void boot(uint16_t window_ms)
     s_timeout_ms = 500u;
     params_init(TABLE, 1u);
     sim_time_set_us(s_now_ms * 1000u);
-    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, window_ms};
+    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, window_ms, 0};
     link_init(&cfg);
 }
 
@@ -339,6 +345,50 @@ static void test_signing_telemetry_unsigned_when_off_but_commands_still_verified
     TEST_ASSERT_TRUE_MESSAGE(signed_frame, "signed again when switched back on");
 }
 
+/* With a key, a signed frame is hashed only when the hash (and the signed answer) ends before
+ * the next control tick (link_cfg_t.tick_due_us); until then it waits in the UART queue. Nothing
+ * is lost or reordered, and after LINK_SHA_MAX_WAITS calls without room it is taken anyway. */
+static void test_signing_frame_waits_for_room_before_control_tick_then_is_handled_in_order(void)
+{
+    static uint32_t due_us;
+    link_cfg_t cfg = {US, 1u, 2460, 2000, 0, WINDOW_MS, &due_us};
+    link_init(&cfg);
+    due_us = hal_time_us() + 1000000u;
+    setup_signing(NULL, KEY, T0);
+    TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
+    uint16_t frames0 = link_state()->rx_frames;
+    static uint8_t buf[2u * MAVLINK_MAX_PACKET_LEN];
+    uint16_t n = estop_frame(KEY, T0 + 100u, 1.0f, buf);
+    n = (uint16_t)(n + estop_frame(KEY, T0 + 200u, 0.0f, buf + n)); /* engage, then release */
+    TEST_ASSERT_EQUAL_UINT16(n, sim_uart_put_rx(HAL_UART_LINK, buf, n));
+
+    due_us = hal_time_us() + SIGNING_MARGIN_US; /* the control tick is due before any hash ends */
+    for (uint8_t k = 0; k < 5u; k++) {
+        link_poll(s_now_ms);
+    }
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(frames0, link_state()->rx_frames, "no hash without room");
+    TEST_ASSERT_FALSE(link_state()->estop);
+
+    /* room for 2 blocks of COMMAND_LONG + 2 of its signed COMMAND_ACK: one frame per call */
+    due_us = hal_time_us() + 4u * SIGNING_BLOCK_US + SIGNING_MARGIN_US;
+    link_poll(s_now_ms);
+    TEST_ASSERT_EQUAL_UINT16(frames0 + 1u, link_state()->rx_frames);
+    TEST_ASSERT_TRUE_MESSAGE(link_state()->estop, "first frame first");
+    link_poll(s_now_ms);
+    TEST_ASSERT_EQUAL_UINT16(frames0 + 2u, link_state()->rx_frames);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "then the second");
+    TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_unsigned + link_state()->rx_bad_signature + link_state()->rx_replay);
+
+    /* never room: the frame goes through after a bounded wait rather than block the link */
+    n = estop_frame(KEY, T0 + 300u, 1.0f, buf);
+    TEST_ASSERT_EQUAL_UINT16(n, sim_uart_put_rx(HAL_UART_LINK, buf, n));
+    due_us = hal_time_us();
+    for (uint8_t k = 0; k < 20u && !link_state()->estop; k++) {
+        link_poll(s_now_ms);
+    }
+    TEST_ASSERT_TRUE_MESSAGE(link_state()->estop, "taken after the bounded wait");
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -359,5 +409,6 @@ int main(void)
     RUN_TEST(test_signing_timestamp_is_stored_and_restored_ahead_after_reboot);
     RUN_TEST(test_signing_robot_signs_its_telemetry);
     RUN_TEST(test_signing_telemetry_unsigned_when_off_but_commands_still_verified);
+    RUN_TEST(test_signing_frame_waits_for_room_before_control_tick_then_is_handled_in_order);
     return UNITY_END();
 }
