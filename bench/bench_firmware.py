@@ -15,6 +15,7 @@ at 10 Hz). Prints:
     every 0.5 s (signed answers; acks and receive errors show that no frame was lost);
   - per-function cycles from the non-LTO `megaatmega2560_profile` build (where the time goes);
   - encoder ISR cycles (PCINT2 vector entry to return), staggered edges and all 4 at once;
+  - cycles of the other interrupts (sonar echo, UART0 RX / TX, Timer5 overflow) in the main run;
   - the highest single-encoder edge rate with zero lost counts (sweep);
   - sonar ring update rate; simavr speed (simulated / wall-clock time).
 """
@@ -168,7 +169,12 @@ def main(argv=None) -> int:
     # --enc-mirror: the right wheels turn their encoders backward (both decode paths of the ISR)
     stim = ["--enc-count", "4", "--enc-hz", "2000", "--enc-mirror", "--sonar-mm", "800",
             "--uart-inject-hex", host_frames_hex(), "--uart-inject-hz", "10", "--isr-stats"]
-    msgs, err, wall = run(elf, args.seconds, stim)
+    # Interrupt vectors of the LTO build (cycles from the vector body to reti, so add the table's
+    # 3-cycle jmp and the 5-cycle interrupt response for the whole cost): the echo body serves
+    # PCINT0 (__vector_9) and INT0..3, which share its address.
+    vectors = {"__vector_9": "sonar echo (PCINT0, INT0..3)", "__vector_25": "UART0 RX",
+               "__vector_26": "UART0 UDRE (TX)", "__vector_50": "Timer5 overflow"}
+    msgs, err, wall = run(elf, args.seconds, stim + symbol_addrs(elf, list(vectors)))
     worst = {}
     rings = []
     for m in msgs:
@@ -197,6 +203,13 @@ def main(argv=None) -> int:
     if am:
         say(f"encoder ISR cycles with all 4 encoders' edges in one interrupt (--enc-aligned): max {am.group(4)} "
             f"= {int(am.group(4)) / 4:.1f} per edge over {am.group(1)} interrupts")
+    say("")
+    say("| interrupt (LTO build, same run) | count | mean cycles | max cycles |")
+    say("|---|---:|---:|---:|")
+    for pm in re.finditer(r"profile (\S+) n=(\d+) min=(\d+) mean=([\d.]+) max=(\d+)", err):
+        if pm.group(1) in vectors:
+            say(f"| {vectors[pm.group(1)]} | {pm.group(2)} | {float(pm.group(4)):.0f} | {pm.group(5)} |")
+    say("")
     if len(rings) >= 2:
         (t0, s0), (t1, s1) = rings[1], rings[-1]
         hz = (s1 - s0) / ((t1 - t0) / 1000.0)

@@ -8,7 +8,8 @@
  * Devices are addressed by logical index (encoder 0..3, sonar 0..11, servo
  * channel 0..1); pin numbers only live in each backend's board.h.
  * Interrupt hooks only timestamp and count: the callbacks registered here are
- * called from interrupt context and must stay short.
+ * called from interrupt context (the echo hook may be called from hal_sonar_poll
+ * instead) and must stay short.
  */
 #ifndef AGNAV_HAL_H
 #define AGNAV_HAL_H
@@ -62,10 +63,17 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn);
 
 /* ---- sonar ring (trigger/echo, HC-SR04 / SRF05 class) ----------------- */
 #define HAL_SONAR_MAX 12u
-/* Called from interrupt context on each edge of the echo line of sonar idx;
- * level = 1 rising (echo started), 0 falling (echo ended). */
+/* Called on each edge of the echo line of sonar idx, in edge order;
+ * level = 1 rising (echo started), 0 falling (echo ended), t_us = hal_time_us() of the edge.
+ * Either from interrupt context (sim, stm32) or, where the interrupt only queues
+ * (lines, timestamp) records (avr), from hal_sonar_poll() in loop context: the hook must
+ * work in both. */
 typedef void (*hal_echo_edge_fn)(uint8_t idx, uint8_t level, uint32_t t_us);
 void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn);
+/* Loop context: deliver the echo edges queued since the last call to the hook (avr);
+ * nothing to do on backends that call the hook from the interrupt. Call it before
+ * looking at echo results, at least every 100 ms. */
+void hal_sonar_poll(void);
 /* Emit the >= 10 us trigger pulse on sonar idx. */
 void hal_sonar_trigger(uint8_t idx);
 

@@ -318,6 +318,7 @@ void sonar_ring_step(uint32_t now_us)
     if (s.n == 0u) {
         return;
     }
+    hal_sonar_poll(); /* echo edges the HAL queued (avr) reach sonar_ring_isr_echo now */
     if (s.measuring) {
         bool force = (uint32_t)(now_us - s.group_fire_us) >= SONAR_SLOT_US;
         for (uint8_t i = 0; i < s.n; i++) {

@@ -2,9 +2,10 @@
  * Sonar ring front end: up to 12 trigger/echo rangers (HC-SR04, SRF05 class).
  *
  * Split in the usual AgNav way:
- *   - sonar_ring_isr_echo() is the HAL echo-edge hook (interrupt context). It
- *     only timestamps the first rising and the first falling edge after each
- *     trigger and remembers the line level.
+ *   - sonar_ring_isr_echo() is the HAL echo-edge hook (interrupt context, or
+ *     loop context from hal_sonar_poll() on the AVR, whose echo vectors only
+ *     queue records). It only keeps the time of the first rising and the first
+ *     falling edge after each trigger, and the line level.
  *   - sonar_ring_step() runs from the main loop as often as possible (every
  *     loop pass, >= 1 kHz is ideal): it fires the sensor groups on schedule,
  *     classifies finished echoes, converts them to millimetres, filters them

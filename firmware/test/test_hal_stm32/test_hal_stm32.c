@@ -24,6 +24,7 @@
 #define hal_encoder_attach stm32_hal_encoder_attach
 #define hal_sonar_attach stm32_hal_sonar_attach
 #define hal_sonar_trigger stm32_hal_sonar_trigger
+#define hal_sonar_poll stm32_hal_sonar_poll
 #define hal_servo_write_us stm32_hal_servo_write_us
 #define hal_pwm_write_duty stm32_hal_pwm_write_duty
 #define hal_eeprom_size stm32_hal_eeprom_size

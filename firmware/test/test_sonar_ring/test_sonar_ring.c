@@ -371,6 +371,58 @@ void test_sonar_ring_presets_match_reference_layouts(void)
     TEST_ASSERT_FALSE(sonar_ring_init(0));
 }
 
+#if defined(__AVR_ATmega2560__)
+/* ---- the ATmega2560's hand-written echo vector (hal/avr/echo_pcint_avr.S) -----------------
+ * Under simavr: the echo ports driven as outputs (PINB / PIND follow), Timer5 running at
+ * clk/1 (a stamp between the counts read just before and just after), the vector called as the hardware would (PCINT0 and INT0 share its body).
+ * Each call must append exactly one record (PINB, PIND, TCNT5 low, high) and advance the head
+ * by 4; hal_sonar_poll() on the board decodes these records (the SIL tests run it). */
+#include <avr/io.h>
+
+#include "../../lib/hal/avr/echo_queue_avr.h"
+
+extern uint8_t hal_avr_echo_q[ECHO_Q_BYTES];
+extern volatile uint8_t hal_avr_echo_head;
+
+static void test_sonar_ring_avr_echo_vector_queues_lines_and_timer5_stamp(void)
+{
+    uint8_t tccr5b = TCCR5B;
+    TCCR5B = (uint8_t)(1u << CS50); /* clk/1: every cycle visible */
+    DDRB = 0xFFu;
+    DDRD = 0x0Fu;
+    uint8_t head0 = hal_avr_echo_head;
+    const uint8_t n = (uint8_t)(ECHO_Q_RECORDS + 3u); /* wraps the queue */
+    for (uint8_t k = 0; k < n; k++) {
+        uint8_t pinb = (uint8_t)(k * 37u + 1u), pind = (uint8_t)(k & 0x0Fu);
+        PORTB = pinb;
+        PORTD = pind;
+        uint8_t sreg = SREG;
+        uint16_t before = TCNT5;
+        if (k & 1u) {
+            __asm__ volatile("call __vector_1" ::: "memory"); /* INT0_vect; its reti sets I */
+        } else {
+            __asm__ volatile("call __vector_9" ::: "memory"); /* PCINT0_vect */
+        }
+        uint16_t after = TCNT5;
+        SREG = sreg;
+        uint8_t head = (uint8_t)(head0 + 4u * k);
+        TEST_ASSERT_EQUAL_HEX8_MESSAGE((uint8_t)(head + 4u), hal_avr_echo_head, "one record per call");
+        const uint8_t *r = &hal_avr_echo_q[head & (ECHO_Q_BYTES - 4u)];
+        TEST_ASSERT_EQUAL_HEX8_MESSAGE(pinb, r[0], "PINB: echoes 0..7");
+        TEST_ASSERT_EQUAL_HEX8_MESSAGE(pind, r[1] & 0x0Fu, "PIND: echoes 8..11");
+        uint16_t stamp = (uint16_t)(r[2] | ((uint16_t)r[3] << 8));
+        TEST_ASSERT_TRUE_MESSAGE((uint16_t)(stamp - before) > 0u, "Timer5 stamp after the call");
+        TEST_ASSERT_TRUE_MESSAGE((uint16_t)(after - stamp) > 0u &&
+                                 (uint16_t)(after - stamp) < (uint16_t)(after - before), "Timer5 stamp before return");
+    }
+    PORTB = 0u;
+    PORTD = 0u;
+    DDRB = 0u;
+    DDRD = 0u;
+    TCCR5B = tccr5b;
+}
+#endif
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -388,5 +440,8 @@ int main(void)
     RUN_TEST(test_sonar_ring_snapshot_flags_new_frame_once);
     RUN_TEST(test_sonar_ring_runs_across_timer_wrap);
     RUN_TEST(test_sonar_ring_presets_match_reference_layouts);
+#if defined(__AVR_ATmega2560__)
+    RUN_TEST(test_sonar_ring_avr_echo_vector_queues_lines_and_timer5_stamp);
+#endif
     return UNITY_END();
 }

@@ -14,7 +14,10 @@
  *                     GPIOR0 / GPIOR2 scratch (no other code may use them)
  *   sonar triggers    PA0..PA7 (D22..D29) sonars 0..7, PC0..PC3 (D37..D34) sonars 8..11
  *   sonar echoes      PB0..PB7 (D53, D52, D51, D50, D10, D11, D12, D13) sonars 0..7 via PCINT0,
- *                     PD0..PD3 (D21, D20, D19, D18) sonars 8..11 via INT0..INT3
+ *                     PD0..PD3 (D21, D20, D19, D18) sonars 8..11 via INT0..INT3 (any edge);
+ *                     all five vectors are one hand-written body (echo_pcint_avr.S) that only
+ *                     queues (PINB, PIND, TCNT5); hal_sonar_poll() decodes the edges in the loop
+ *   link UART vectors USART0 RX / UDRE hand-written too (uart_avr.S), rings in there
  */
 #ifndef AGNAV_BOARD_AVR_H
 #define AGNAV_BOARD_AVR_H

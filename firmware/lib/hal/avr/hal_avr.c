@@ -112,33 +112,19 @@ hal_irq_state_t hal_irq_save(void)
 
 void hal_irq_restore(hal_irq_state_t s) { SREG = s; }
 
-/* ---- UART0: interrupt-driven TX ring, RX ring ------------------------- */
-#define UART_TX_SIZE 256u /* power of two: uint8_t indexes wrap by themselves */
-#define UART_RX_SIZE 128u
-static uint8_t s_tx[UART_TX_SIZE];
-static volatile uint8_t s_tx_head, s_tx_tail;
-static uint8_t s_rx[UART_RX_SIZE];
-static volatile uint8_t s_rx_head, s_rx_tail;
-
-ISR(USART0_RX_vect)
-{
-    uint8_t b = UDR0;
-    uint8_t next = (uint8_t)((s_rx_head + 1u) & (UART_RX_SIZE - 1u));
-    if (next != s_rx_tail) {
-        s_rx[s_rx_head] = b;
-        s_rx_head = next;
-    }
-}
-
-ISR(USART0_UDRE_vect)
-{
-    if (s_tx_head == s_tx_tail) {
-        UCSR0B &= (uint8_t)~(1u << UDRIE0);
-        return;
-    }
-    UDR0 = s_tx[s_tx_tail];
-    s_tx_tail = (uint8_t)(s_tx_tail + 1u);
-}
+/* ---- UART0: interrupt-driven TX ring, RX ring -------------------------
+ * The vectors and the rings are in uart_avr.S (hand-written, fewer saved registers). */
+#include "uart_ring_avr.h"
+extern uint8_t hal_avr_tx[UART_TX_SIZE];
+extern uint8_t hal_avr_rx[UART_RX_SIZE];
+extern volatile uint8_t hal_avr_tx_head, hal_avr_tx_tail;
+extern volatile uint8_t hal_avr_rx_head, hal_avr_rx_tail;
+#define s_tx hal_avr_tx
+#define s_rx hal_avr_rx
+#define s_tx_head hal_avr_tx_head
+#define s_tx_tail hal_avr_tx_tail
+#define s_rx_head hal_avr_rx_head
+#define s_rx_tail hal_avr_rx_tail
 
 void hal_uart_init(uint8_t port, uint32_t baud)
 {
@@ -187,18 +173,6 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
     return n;
 }
 
-/* hal_time_us() for interrupt handlers: interrupts are already off there.
- * <<16 is byte moves; a single <<18 would be an 18-step shift loop under -Os. */
-static inline __attribute__((always_inline)) uint32_t isr_time_us(void)
-{
-    uint16_t hi = s_time_overflows;
-    uint16_t lo = TCNT5;
-    if ((TIFR5 & (1u << TOV5)) && lo < 0x8000u) {
-        hi++; /* overflow pending, not yet serviced */
-    }
-    return (((uint32_t)hi << 16) | lo) << 2;
-}
-
 /* ---- encoders: PORTK pin-change interrupt -----------------------------
  * The vector is hand-written (encoder_pcint_avr.S): it decodes all four
  * encoders into encoder_isr_state[] (rules: encoder/encoder_isr.h) and keeps the
@@ -227,68 +201,73 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
 }
 
 /* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 ---
- * Like the encoders, the echo ISRs call the sonar ring's hook directly (LTO
- * inlines it) and read the time inline: a group's echoes can end together. */
+ * The echo vectors (echo_pcint_avr.S, one body for all five) only queue (PINB, PIND, TCNT5)
+ * records; hal_sonar_poll() decodes them into edges here, in loop context, and hands
+ * them to the sonar ring's hook (called directly, not through the pointer). Twelve sonars
+ * give at most 8 edges per 32 ms slot and the sonar task polls every 1 ms, so 16 records
+ * is ample; a stamp must be decoded within 262 ms (Timer5 period), hal.h says 100 ms. */
+#include "echo_queue_avr.h"
 #include "sonar_ring.h"
-static bool s_echo_on;
-static uint8_t s_sonar_count;
-static uint8_t s_pinb_last;
+extern uint8_t hal_avr_echo_q[ECHO_Q_BYTES]; /* in echo_pcint_avr.S, written by the vector only */
+extern volatile uint8_t hal_avr_echo_head;   /* next record's byte offset, advanced by the vector */
+static uint8_t s_echo_tail;               /* next record to decode */
+static uint16_t s_echo_lines;             /* echo levels after the last decoded record, bit = sonar */
+static uint16_t s_echo_mask;              /* attached sonars */
 
-/* A group of up to four sonars can change its echo lines in the same
- * microsecond, which makes this the longest ISR; the encoders must not wait
- * for it (a quadrature edge missed is a count lost). So it samples the lines
- * and the time, masks only itself, and lets other interrupts in while it
- * hands the edges to the sonar ring. */
-ISR(PCINT0_vect)
+void hal_sonar_poll(void)
 {
-    uint8_t now = PINB;
-    uint32_t t = isr_time_us();
-    uint8_t changed = (uint8_t)(now ^ s_pinb_last);
-    s_pinb_last = now;
-    if (!s_echo_on || changed == 0u) {
-        return;
+    /* Head first, then the clock: every record before head is older than now, so
+     * now - stamp (16-bit, < 262 ms: polled every ms) extends the stamp exactly. */
+    uint8_t head = hal_avr_echo_head;
+    uint32_t now_ticks = ticks_now();
+    if ((uint8_t)(head - s_echo_tail) > ECHO_Q_BYTES) {
+        s_echo_tail = head; /* overrun (never at 1 ms polling): drop, the next record resyncs the levels */
     }
-    PCICR &= (uint8_t)~(1u << PCIE0);
-    sei();
-    for (uint8_t i = 0; i < 8u && i < s_sonar_count; i++) {
-        if (changed & (uint8_t)(1u << i)) {
-            sonar_ring_isr_echo(i, (uint8_t)((now >> i) & 1u), t);
+    while (s_echo_tail != head) {
+        const uint8_t *r = &hal_avr_echo_q[s_echo_tail & (ECHO_Q_BYTES - 4u)];
+        s_echo_tail = (uint8_t)(s_echo_tail + 4u);
+        uint16_t lines = (uint16_t)(r[0] | ((uint16_t)(r[1] & 0x0Fu) << 8)) & s_echo_mask;
+        uint16_t changed = lines ^ s_echo_lines;
+        if (changed == 0u) {
+            continue;
+        }
+        s_echo_lines = lines;
+        uint16_t stamp = (uint16_t)(r[2] | ((uint16_t)r[3] << 8));
+        uint32_t t_us = (now_ticks - (uint16_t)((uint16_t)now_ticks - stamp)) << 2;
+        for (uint8_t i = 0; changed != 0u; i++, changed >>= 1, lines >>= 1) {
+            if (changed & 1u) {
+                sonar_ring_isr_echo(i, (uint8_t)(lines & 1u), t_us);
+            }
         }
     }
-    cli();
-    PCICR |= (uint8_t)(1u << PCIE0);
 }
-
-#define ECHO_EXT_ISR(vect, bit, idx)                                            \
-    ISR(vect)                                                                   \
-    {                                                                           \
-        if (s_echo_on) {                                                        \
-            sonar_ring_isr_echo((idx), (uint8_t)((PIND >> (bit)) & 1u), isr_time_us()); \
-        }                                                                       \
-    }
-ECHO_EXT_ISR(INT0_vect, 0, 8u)
-ECHO_EXT_ISR(INT1_vect, 1, 9u)
-ECHO_EXT_ISR(INT2_vect, 2, 10u)
-ECHO_EXT_ISR(INT3_vect, 3, 11u)
 
 void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
 {
     if (count > HAL_SONAR_MAX) {
         count = HAL_SONAR_MAX;
     }
-    s_sonar_count = count;
-    s_echo_on = fn != 0; /* always sonar_ring_isr_echo on this board, see the ISRs */
+    /* fn is always sonar_ring_isr_echo on this board (hal_sonar_poll calls it directly) */
     uint8_t low = count >= 8u ? 0xFFu : (uint8_t)((1u << count) - 1u);
     uint8_t high = count > 8u ? (uint8_t)((1u << (count - 8u)) - 1u) : 0u;
     DDRA |= low;           /* triggers 0..7 */
     DDRC |= high;          /* triggers 8..11 */
     DDRB &= (uint8_t)~low; /* echoes 0..7 */
     DDRD &= (uint8_t)~high;
-    s_pinb_last = PINB;
+    if (fn == 0) {
+        low = 0u;
+        high = 0u;
+    }
+    uint8_t sreg = SREG;
+    cli();
+    s_echo_mask = (uint16_t)(low | ((uint16_t)high << 8));
+    s_echo_lines = (uint16_t)(PINB | ((uint16_t)(PIND & 0x0Fu) << 8)) & s_echo_mask;
+    s_echo_tail = hal_avr_echo_head;
     PCMSK0 = low;
     PCICR |= (uint8_t)(1u << PCIE0);
     EICRA = 0x55u; /* INT0..3 on any edge */
-    EIMSK |= high;
+    EIMSK = high;
+    SREG = sreg;
 }
 
 void hal_sonar_trigger(uint8_t idx)

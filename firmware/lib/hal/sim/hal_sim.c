@@ -141,6 +141,8 @@ void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
     sim.echo_fn = fn;
 }
 
+void hal_sonar_poll(void) {} /* the hook runs at each sim_sonar_echo_edge() */
+
 void hal_sonar_trigger(uint8_t idx)
 {
     if (idx >= HAL_SONAR_MAX) {

@@ -385,6 +385,8 @@ void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
     hal_irq_restore(s);
 }
 
+void hal_sonar_poll(void) {} /* the EXTI handler calls the hook itself */
+
 void hal_sonar_trigger(uint8_t idx)
 {
     if (idx >= HAL_SONAR_MAX) {
