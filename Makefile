@@ -61,7 +61,7 @@ demo: setup sil
 
 # Native software-in-the-loop library (the firmware built against the simulated HAL).
 sil: build/sil/libagnav_sil.so
-build/sil/libagnav_sil.so: firmware/src/main.c $(wildcard firmware/lib/*/*.[ch] firmware/lib/hal/sim/*) hil/sil/sil_api.c hil/sil/sil_api.h hil/sil/sil_events.h protocol/agnav.xml | venv
+build/sil/libagnav_sil.so: firmware/src/main.c $(wildcard firmware/lib/*/*.[ch] firmware/lib/hal/sim/*) hil/sil/sil_api.c $(wildcard hil/sil/*.h) protocol/agnav.xml | venv
 	$(PY) -m agnav_host.sil.build
 
 test: setup sil

@@ -10,10 +10,7 @@
 #include "signing.h"
 #include "sim/hal_sim.h"
 
-/* The firmware's EEPROM map (params.h). */
-#ifndef SIL_EEPROM_PARAMS_ADDR
-#define SIL_EEPROM_PARAMS_ADDR PARAMS_EEPROM_ADDR
-#endif
+#include "sil_eeprom_map.h" /* after the firmware headers: checked against them */
 
 void agnav_setup(void);
 void agnav_loop_once(void);
@@ -358,26 +355,7 @@ int sil_fault_sonar(uint8_t idx, int mode)
 
 int sil_eeprom_record(int which, uint32_t *addr, uint32_t *len)
 {
-    switch (which) {
-    case SIL_REC_CALIB:
-        *addr = CALIB_EEPROM_ADDR;
-        *len = CALIB_RECORD_BYTES;
-        return 0;
-    case SIL_REC_PARAMS:
-        *addr = SIL_EEPROM_PARAMS_ADDR;
-        *len = 4u + 4u * params_count() + 2u;
-        return 0;
-    case SIL_REC_SIGNING:
-        *addr = SIGNING_KEY_ADDR;
-        *len = SIGNING_KEY_RECORD_BYTES;
-        return 0;
-    case SIL_REC_SIGNING_TS:
-        *addr = SIGNING_TS_ADDR;
-        *len = SIGNING_TS_SLOTS * SIGNING_TS_SLOT_BYTES;
-        return 0;
-    default:
-        return -1;
-    }
+    return sil_eeprom_map(which, params_count(), addr, len);
 }
 
 void sil_eeprom_corrupt(uint32_t addr, uint32_t len, uint8_t xor_mask)

@@ -50,6 +50,7 @@
  * firmware loads at its next boot. sil_reboot() keeps the EEPROM and powers on a new core.
  */
 #include "sil_api.h"
+#include "sil_eeprom_map.h"
 #include "sil_events.h"
 
 #include "avr_board_model.h"
@@ -73,9 +74,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#ifndef SIL_EEPROM_PARAMS_ADDR
-#define SIL_EEPROM_PARAMS_ADDR 0x0200u /* params.h PARAMS_EEPROM_ADDR (checked by the tests) */
-#endif
 #define PARAMS_MAGIC 0xA61Du        /* params.c */
 #define PARAM_ROW_BYTES 29u         /* avr-gcc layout of param_def_t */
 #define PARAMS_MAX 64u
@@ -908,29 +906,9 @@ int sil_fault_sonar(uint8_t idx, int mode)
     return 0;
 }
 
-/* The firmware's EEPROM map (calib.h, params.h, signing.h; tests compare with the native SIL). */
 int sil_eeprom_record(int which, uint32_t *addr, uint32_t *len)
 {
-    switch (which) {
-    case SIL_REC_CALIB:
-        *addr = 0x0100u;
-        *len = 212u;
-        return 0;
-    case SIL_REC_PARAMS:
-        *addr = SIL_EEPROM_PARAMS_ADDR;
-        *len = 4u + 4u * (uint32_t)(g_param_n > 0 ? g_param_n : 0) + 2u;
-        return 0;
-    case SIL_REC_SIGNING:
-        *addr = 0x0040u;
-        *len = 36u;
-        return 0;
-    case SIL_REC_SIGNING_TS:
-        *addr = 0x0070u;
-        *len = 64u;
-        return 0;
-    default:
-        return -1;
-    }
+    return sil_eeprom_map(which, (uint32_t)(g_param_n > 0 ? g_param_n : 0), addr, len);
 }
 
 void sil_eeprom_corrupt(uint32_t addr, uint32_t len, uint8_t xor_mask)

@@ -79,7 +79,7 @@ def test_avr_param_table_and_eeprom_record_match_native():
     hdr = (REPO / "firmware/lib/params/params.h").read_text()
     src = (REPO / "firmware/lib/params/params.c").read_text()
     main = (REPO / "firmware/src/main.c").read_text()
-    assert re.search(r"#define PARAMS_EEPROM_ADDR 0x0200u", hdr), "PARAMS_EEPROM_ADDR moved: update avr_sil.c"
+    assert re.search(r"#define PARAMS_EEPROM_ADDR 0x0200u", hdr), "PARAMS_EEPROM_ADDR moved: update hil/sil/sil_eeprom_map.h"
     assert re.search(r"#define PARAMS_MAGIC 0xA61Du", src), "PARAMS_MAGIC changed: update avr_sil.c"
     block = main[main.index("PARAMS[] = {"):main.index("#define PARAM_COUNT")]
     names_main = re.findall(r'\{"([A-Z0-9_]+)", PARAM_', block)

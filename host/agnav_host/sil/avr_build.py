@@ -49,7 +49,7 @@ def _newer(out: Path, inputs: list[Path]) -> bool:
 def build_avr_library(out: Path = AVR_LIB_PATH, force: bool = False) -> Path:
     """(Re)build the simavr-backed SIL library when missing or older than its sources."""
     if not force and not _newer(out, [AVR_SRC, AVR_MODEL_SRC, AVR_MODEL_SRC.with_suffix(".h"), SIL_DIR / "sil_api.h",
-                                      SIL_DIR / "sil_events.h"]):
+                                      SIL_DIR / "sil_events.h", SIL_DIR / "sil_eeprom_map.h"]):
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + f".tmp{os.getpid()}")
