@@ -49,38 +49,22 @@ class _Sender:
 
 
 def _run(bad: Callable[[Any], None], seconds: float = T_BAD_S + 3.0, good: bool = True,
-         replace_hb: bool = False, setup: Callable[[Any], None] | None = None, keep_good: bool = False) -> DriveTrace:
-    drv = _Sender(bad, good, replace_hb, keep_good)
-    events = [(0.0, setup)] if setup is not None else []
-    tr = drive_with_link_faults(seconds, seed=9, driver=drv, events=events)  # type: ignore[arg-type]
-    return tr
-
-
-def _speeds_after(tr: DriveTrace, t_us: int) -> list[float]:
-    i = tr.index_at(t_us)
-    return tr.speed_m_s[i:]
-
-
-def _acks(tr: DriveTrace) -> list[Any]:
-    return tr.acks
-
-
-def _texts_after(tr: DriveTrace, t_us: int) -> list[str]:
-    return [txt for t, txt in tr.texts if t >= t_us]
+         replace_hb: bool = False, keep_good: bool = False) -> DriveTrace:
+    return drive_with_link_faults(seconds, seed=9, driver=_Sender(bad, good, replace_hb, keep_good))  # type: ignore[arg-type]
 
 
 def _stopped_within(tr: DriveTrace, t_us: int, limit_ms: float) -> float:
-    stops = [t for t in tr.stops() if t >= t_us]
-    return (stops[0] - t_us) / 1000.0 if stops and (stops[0] - t_us) / 1000.0 <= limit_ms else math.inf
+    t_stop = tr.first_stop_after(t_us)
+    return (t_stop - t_us) / 1000.0 if t_stop is not None and (t_stop - t_us) / 1000.0 <= limit_ms else math.inf
 
 
 # ---- bad commands ------------------------------------------------------------------------------------
 def _case_absurd_speed() -> FaultOutcome:
     tr = _run(lambda s: s.host.setpoint(0, 30000))
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
-    v_max = max(_speeds_after(tr, t_bad))
+    v_max = max(tr.speeds_after(t_bad))
     stop_ms = _stopped_within(tr, t_bad, 200.0)
-    txt = _texts_after(tr, t_bad)
+    txt = tr.texts_after(t_bad)
     moved_after = any(tr.moving[tr.index_at(t_bad) + 60:])  # 120 ms after the first bad frame
     ok = v_max <= SPEED_MM_S / 1000 * 1.05 and stop_ms < math.inf and not moved_after and bool(txt)
     return FaultOutcome(f"refused: STATUSTEXT \"{txt[0] if txt else 'NONE'}\", outputs neutral {stop_ms:.0f} ms "
@@ -90,7 +74,7 @@ def _case_absurd_speed() -> FaultOutcome:
 def _case_clamped_speed() -> FaultOutcome:
     tr = _run(lambda s: s.host.setpoint(0, 5000), seconds=T_BAD_S + 6.0)
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
-    v_max = max(_speeds_after(tr, t_bad))
+    v_max = max(tr.speeds_after(t_bad))
     ok = v_max <= MAX_SPEED_MM_S / 1000 * 1.05 and v_max > SPEED_MM_S / 1000 * 1.2
     return FaultOutcome(f"5 m/s asked: robot accelerated to {v_max:.2f} m/s and no further "
                         f"(MAX_SPEED_MM_S {MAX_SPEED_MM_S})", ok)
@@ -99,7 +83,7 @@ def _case_clamped_speed() -> FaultOutcome:
 def _case_nan_command() -> FaultOutcome:
     tr = _run(lambda s: s.host.command_long(45900, float("nan")), keep_good=True)  # MAV_CMD_AGNAV_ESTOP, param1 NaN
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
-    res = [(a.command, a.result, getattr(a, "result_param2", None)) for a in _acks(tr) if a.command == 45900]
+    res = [(a.command, a.result, getattr(a, "result_param2", None)) for a in tr.acks if a.command == 45900]
     still_driving = not any(not m for m in tr.moving[tr.index_at(t_bad):])
     ok = bool(res) and all(r[1] == 2 for r in res) and still_driving  # MAV_RESULT_DENIED
     return FaultOutcome(f"{len(res)} x COMMAND_ACK result {res[0][1] if res else '-'} (DENIED) reason "
@@ -109,7 +93,7 @@ def _case_nan_command() -> FaultOutcome:
 
 def _case_unknown_command() -> FaultOutcome:
     tr = _run(lambda s: s.host.command_long(31999, 1.0))
-    res = [a.result for a in _acks(tr) if a.command == 31999]
+    res = [a.result for a in tr.acks if a.command == 31999]
     ok = bool(res) and all(r == 3 for r in res)  # MAV_RESULT_UNSUPPORTED
     return FaultOutcome(f"{len(res)} x COMMAND_ACK result {res[0] if res else '-'} (UNSUPPORTED)", ok)
 
@@ -123,7 +107,7 @@ def _case_nan_goal() -> FaultOutcome:
 
     tr = _run(bad)
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
-    txt = _texts_after(tr, t_bad)
+    txt = tr.texts_after(t_bad)
     ok = bool(txt) and any("goal" in t.lower() or "position" in t.lower() for t in txt)
     return FaultOutcome(f"STATUSTEXT \"{txt[0] if txt else 'NONE'}\"; no goal taken", ok)
 
@@ -166,7 +150,7 @@ def _case_truncated() -> FaultOutcome:
     tr = _run(bad, good=False)
     moved = any(tr.moving)
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
-    txt = _texts_after(tr, t_bad)
+    txt = tr.texts_after(t_bad)
     ok = not moved and bool(txt)
     return FaultOutcome(f"truncated setpoint frames (valid CRC): robot {'MOVED' if moved else 'stayed still'}; "
                         f"STATUSTEXT \"{txt[0] if txt else 'NONE'}\"", ok)
@@ -248,8 +232,8 @@ def _signing_case(kind: str) -> FaultOutcome:
     tr = drive_with_link_faults(T_BAD_S + 3.0, seed=10, driver=drv, events=[(0.0, _provision)])
     t_bad = tr.t0_us + int(T_BAD_S * 1e6)
     drove_before = any(tr.moving[tr.index_at(tr.t0_us + 1_000_000):tr.index_at(t_bad)])
-    stop = [t for t in tr.stops() if t >= t_bad]
-    stop_ms = (stop[0] - t_bad) / 1000.0 if stop else math.inf
+    t_stop = tr.first_stop_after(t_bad)
+    stop_ms = (t_stop - t_bad) / 1000.0 if t_stop is not None else math.inf
     moved_after = any(tr.moving[tr.index_at(t_bad + 700_000):])
     counters = tr.sys_status_counters
     idx = {"unsigned": 1, "wrong key": 2, "replayed": 3}[kind]

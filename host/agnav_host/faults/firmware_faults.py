@@ -21,25 +21,17 @@ FS_ENCODER_FAULT, FS_SONAR_FAULT, FS_WATCHDOG_RESET, FS_CALIB_DEFAULTED = 4, 8, 
 T_INJECT_S = 3.0
 
 
-def _after(tr: DriveTrace, t_us: int) -> list[tuple[int, int, int, int]]:
-    return [st for st in tr.statuses if st[0] >= t_us]
-
-
 def _stop_summary(tr: DriveTrace, t_inj: int) -> tuple[float, float, float, bool]:
     """(ms from the fault to neutral outputs, ms to standstill, metres travelled meanwhile, stayed
     stopped to the end of the run)."""
-    stops = [t for t in tr.stops() if t >= t_inj]
-    if not stops:
+    t_stop = tr.first_stop_after(t_inj)
+    if t_stop is None:
         return math.inf, math.inf, math.inf, False
     i_inj = tr.index_at(t_inj)
-    i_stop = tr.index_at(stops[0])
+    i_stop = tr.index_at(t_stop)
     i_still = next((i for i in range(i_stop, len(tr.t_us)) if abs(tr.speed_m_s[i]) < 1e-3), len(tr.t_us) - 1)
     stayed = not any(tr.moving[i_stop:])
-    return ((stops[0] - t_inj) / 1000.0, (tr.t_us[i_still] - t_inj) / 1000.0, tr.x_m[i_still] - tr.x_m[i_inj], stayed)
-
-
-def _texts(tr: DriveTrace, t_us: int) -> list[str]:
-    return [txt for t, txt in tr.texts if t >= t_us]
+    return ((t_stop - t_inj) / 1000.0, (tr.t_us[i_still] - t_inj) / 1000.0, tr.x_m[i_still] - tr.x_m[i_inj], stayed)
 
 
 def _sensor_case(inject: Callable, flag: int, limit_ms: float) -> Callable[[], FaultOutcome]:  # noqa: ANN001
@@ -48,11 +40,11 @@ def _sensor_case(inject: Callable, flag: int, limit_ms: float) -> Callable[[], F
         t_inj = tr.t0_us + int(T_INJECT_S * 1e6)
         before = [st for st in tr.statuses if tr.t0_us + 1_000_000 <= st[0] < t_inj]
         clean_before = bool(before) and not any(st[3] & flag for st in before)
-        seen = next((st for st in _after(tr, t_inj) if st[1] == LAYER_FAILSAFE and st[2] == REASON_SENSOR_FAULT
+        seen = next((st for st in tr.statuses_after(t_inj) if st[1] == LAYER_FAILSAFE and st[2] == REASON_SENSOR_FAULT
                      and st[3] & flag), None)
         detect_ms = (seen[0] - t_inj) / 1000.0 if seen else math.inf
         stop_ms, still_ms, dist, stayed = _stop_summary(tr, t_inj)
-        txt = _texts(tr, t_inj)
+        txt = tr.texts_after(t_inj)
         ok = clean_before and detect_ms <= limit_ms and stop_ms <= limit_ms + TICK_MS + DT_S * 1000 and stayed and bool(txt)
         msg = (f"{'no false alarm before; ' if clean_before else 'FLAG SET BEFORE THE FAULT; '}"
                f"host saw SENSOR_FAULT after {detect_ms:.0f} ms, outputs neutral after {stop_ms:.0f} ms, "
@@ -71,11 +63,11 @@ def _reset_case(cause: str) -> FaultOutcome:
     t_arm_us = tr.t0_us + int(t_arm * 1e6)
     i_inj, i_arm = tr.index_at(t_inj), tr.index_at(t_arm_us)
     moved_before_arm = any(tr.moving[i_inj + 1:i_arm])
-    seen = next((st for st in _after(tr, t_inj) if st[1] == LAYER_FAILSAFE and st[2] == REASON_WATCHDOG_BOOT), None)
+    seen = next((st for st in tr.statuses_after(t_inj) if st[1] == LAYER_FAILSAFE and st[2] == REASON_WATCHDOG_BOOT), None)
     restart = [t for t in tr.starts() if t >= t_arm_us]
     resume_ms = (restart[0] - t_arm_us) / 1000.0 if restart else math.inf
     stop_ms, still_ms, dist, _ = _stop_summary(tr, t_inj)
-    txt = _texts(tr, t_inj)
+    txt = tr.texts_after(t_inj)
     ok = (not moved_before_arm and seen is not None and resume_ms < 200.0 and stop_ms <= DT_S * 1000 + 1e-6 and bool(txt))
     msg = (f"outputs neutral {stop_ms:.0f} ms after the reset (booted stopped), standstill after {still_ms:.0f} ms "
            f"({dist:.3f} m); {'MOVED' if moved_before_arm else 'stayed stopped'} for 2 s of host setpoints; reason "
@@ -92,8 +84,8 @@ def _eeprom_case(record: str) -> FaultOutcome:
 
     tr = drive_with_link_faults(T_INJECT_S + 3.0, seed=7, events=[(T_INJECT_S, inject)])
     t_inj = tr.t0_us + int(T_INJECT_S * 1e6)
-    txt = _texts(tr, t_inj)
-    after = _after(tr, t_inj)
+    txt = tr.texts_after(t_inj)
+    after = tr.statuses_after(t_inj)
     words = {"calib": ("calib",), "params": ("param",)}[record]
     told = [t for t in txt if any(w in t.lower() for w in words)]
     flagged = any(st[3] & FS_CALIB_DEFAULTED for st in after) if record == "calib" else bool(told)
@@ -121,7 +113,7 @@ def _isr_burst_case() -> FaultOutcome:
         resets.append(s.fw.reset_count)
         s.fw.set_isr_cost_us(0)
 
-    tr = drive_with_link_faults(T_INJECT_S + 2.5, seed=8, events=[(T_INJECT_S, start), (T_INJECT_S + 1.05, end)])
+    drive_with_link_faults(T_INJECT_S + 2.5, seed=8, events=[(T_INJECT_S, start), (T_INJECT_S + 1.05, end)])
     gap_ms = gaps[0] / 1000.0 if gaps else math.inf
     no_reset = len(resets) == 2 and resets[0] == resets[1]
     ok = gap_ms <= TICK_MS * 1.5 and no_reset

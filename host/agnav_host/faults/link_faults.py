@@ -69,6 +69,19 @@ class DriveTrace:
     def starts(self) -> list[int]:
         return [self.t_us[i] for i in range(1, len(self.t_us)) if not self.moving[i - 1] and self.moving[i]]
 
+    def first_stop_after(self, t_us: int) -> int | None:
+        """When the outputs first went neutral at or after t_us (us), None if they never did."""
+        return next((t for t in self.stops() if t >= t_us), None)
+
+    def texts_after(self, t_us: int) -> list[str]:
+        return [txt for t, txt in self.texts if t >= t_us]
+
+    def statuses_after(self, t_us: int) -> list[tuple[int, int, int, int]]:
+        return [st for st in self.statuses if st[0] >= t_us]
+
+    def speeds_after(self, t_us: int) -> list[float]:
+        return self.speed_m_s[self.index_at(t_us):]
+
     def last_delivery_before(self, t_us: int) -> int | None:
         prev = [d for d in self.deliveries_us if d <= t_us]
         return prev[-1] if prev else None
@@ -237,10 +250,9 @@ def _case_dead_radio() -> FaultOutcome:
     tr = drive_with_link_faults(14.0, seed=4, driver=drv, cut_at_s=5.0, restore_at_s=9.0)
     cut_us = tr.t0_us + 5_000_000
     last = tr.last_delivery_before(cut_us + 100_000)
-    stops = [t for t in tr.stops() if t > cut_us - 200_000]
-    if last is None or not stops:
+    t_stop = tr.first_stop_after(cut_us - 200_000 + 1)
+    if last is None or t_stop is None:
         return FaultOutcome("robot never stopped after the radio died", False)
-    t_stop = stops[0]
     i_last, i_stop = tr.index_at(last), tr.index_at(t_stop)
     i_still = next((i for i in range(i_stop, len(tr.t_us)) if abs(tr.speed_m_s[i]) < 1e-3), None)
     react_ms = (t_stop - last) / 1000.0
