@@ -1,7 +1,7 @@
 """Perception benchmark: closed-loop row following, proximity following, hole detection, latency.
 
 Run:  .venv/bin/python bench/bench_perception.py            (all, a few minutes)
-      .venv/bin/python bench/bench_perception.py --only rows,proximity,face,holes,ruts,hole_field,latency
+      .venv/bin/python bench/bench_perception.py --only rows,proximity,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency
 Everything is seeded; the figures go to bench/results/perception.md by hand.
 
 * rows: five runs per detection method ("clean": reached the row end without touching a crop plant;
@@ -16,6 +16,8 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
   The visible half-width of the row is calibrated once (the follower's estimator on calibration drives along a line
   1 m from three other rows, world_seeds 1007-1009). Distance = from the robot to the row's centre polyline, every
   physics step once the robot is past x = 2 m (the settling: it starts 0.92 m from the line, 21 deg off the row).
+  A second table measures the same runs against the row as planted: the bushes' centres (mean of each bush's
+  circles, what a surveyor would mark) averaged over 2, 3 and 6 m of row, instead of the design sine.
 * face: how far the curvy row's visible face itself strays from its plant line, per world (no simulation):
   the floor under any follower that sees only the face (see bush_face_floor).
 * holes: the five hole sizes of ref 000 table 5-I, each approached head-on and at 30 deg from three
@@ -25,6 +27,8 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
   runner with the tilted laser as a scenario sensor and the rut follower in closed loop; lateral error = signed
   distance from the ruts' true midline (the world's polyline), every physics step past x = 3 m (the capture:
   the robot starts 0.14-0.33 m off the midline, 9 deg off its direction).
+* ruts_sil, hole_field_sil: the same two in the SIL (native firmware, radio link): the controllers place what the
+  tilted laser sees with the firmware's odometry, not the simulator's true pose.
 * hole_field: the built-in hole_field (holes of ref 000 in the way to a goal 24 m ahead) run by the runner, the
   goal-seeking stand-in without and with GroundGuard (the tilted laser's holes as posts in its scan); the
   robot's disc's nearest approach to each hole's rim, from the world's hole shapes.
@@ -41,12 +45,13 @@ import re
 import statistics
 import sys
 import time
+import tomllib
 from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
-from agnav_host.sim.metrics import signed_offset_m
+from agnav_host.sim.metrics import along_and_offset_m, signed_offset_m
 from agnav_host.perception import (
     GroundParams,
     ProximityFollower,
@@ -211,17 +216,23 @@ def calibrate_half_width(sc: Scenario, params: ProximityFollowerParams, distance
     return distance_m - float(np.mean(got))
 
 
-def _polyline_foot(px: np.ndarray, py: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance (m) of each point from a polyline and the x of its foot point on the line."""
-    a, b = line[:-1], line[1:]
-    d = b - a
-    l2 = (d**2).sum(axis=1)
-    qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
-    u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / l2[None, :], 0.0, 1.0)
-    dist = np.hypot(qx - u * d[None, :, 0], qy - u * d[None, :, 1])
-    j = np.argmin(dist, axis=1)
-    i = np.arange(len(j))
-    return dist[i, j], a[j, 0] + u[i, j] * d[j, 0]
+PLANTED_WINDOWS_M = (2.0, 3.0, 6.0)  # proximity: the row as planted = mean of the bush centres within this length
+
+
+def bush_centres(sc: Scenario) -> np.ndarray:
+    """The centre of each bush (the mean of its circles; what a surveyor would mark), (k, 2). The curvy row's
+    bushes are ``cluster`` circles each, stored bush by bush."""
+    cluster = int(tomllib.loads(builtin_text("curvy_row"))["rows"][0]["cluster"])
+    c = sc.world.circles
+    assert len(c) % cluster == 0, "curvy_row: circles are not whole bushes"
+    return c[:, :2].reshape(-1, cluster, 2).mean(axis=1)
+
+
+def planted_row_offset_m(s_query: np.ndarray, s_bush: np.ndarray, n_bush: np.ndarray, window_m: float) -> np.ndarray:
+    """Where the row as planted runs, as a signed offset (m) from the design line at each arc length
+    ``s_query``: the mean offset of the bushes within +-window/2 along the row."""
+    near = np.abs(s_bush[None, :] - s_query[:, None]) <= 0.5 * window_m
+    return (near * n_bush[None, :]).sum(axis=1) / np.maximum(near.sum(axis=1), 1)
 
 
 def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[float, ...] = (3.0, 6.0, 11.0)
@@ -283,19 +294,29 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, 
                 return cmd
 
         traj = closed_loop(sc, Logged(), seed, 150.0, stop=lambda p: p.x_m > 47.0)
-        d_all, _ = _polyline_foot(traj[:, 1], traj[:, 2], centre)
+        s_all, n_all = along_and_offset_m(traj[:, 1], traj[:, 2], centre)
+        d_all = np.abs(n_all)
         keep = traj[:, 1] > PROXIMITY_SETTLE_X_M
         x = traj[keep, 1]
         d = d_all[keep]
         o = np.asarray(own)
         d_est = np.interp(traj[keep, 0], o[:, 0], o[:, 1])  # the follower's estimate, between its control steps
-        out.append({"seed": seed, "world_seed": 7 + seed, "half_width_m": half_width_m, "mean": float(d.mean()),
-                    "sd": float(d.std()), "min": float(d.min()), "max": float(d.max()),
-                    "x_min": float(x[np.argmin(d)]), "x_max": float(x[np.argmax(d)]),
-                    "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1]),
-                    "whole_min": float(d_all.min()), "whole_max": float(d_all.max()),
-                    "est_err_max": float(np.nanmax(np.abs(d_est - d))),
-                    "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0)))})
+        row = {"seed": seed, "world_seed": 7 + seed, "half_width_m": half_width_m, "mean": float(d.mean()),
+               "sd": float(d.std()), "min": float(d.min()), "max": float(d.max()),
+               "x_min": float(x[np.argmin(d)]), "x_max": float(x[np.argmax(d)]),
+               "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1]),
+               "whole_min": float(d_all.min()), "whole_max": float(d_all.max()),
+               "est_err_max": float(np.nanmax(np.abs(d_est - d))),
+               "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0)))}
+        # the same run against the row as planted: the bushes' own line, not the design sine they were planted along
+        bc = bush_centres(sc)
+        s_b, n_b = along_and_offset_m(bc[:, 0], bc[:, 1], centre)
+        for w in PLANTED_WINDOWS_M:
+            dp = np.abs(n_all[keep] - planted_row_offset_m(s_all[keep], s_b, n_b, w))
+            row[f"planted{w:g}_mean"], row[f"planted{w:g}_sd"] = float(dp.mean()), float(dp.std())
+            row[f"planted{w:g}_min"], row[f"planted{w:g}_max"] = float(dp.min()), float(dp.max())
+            row[f"planted{w:g}_inside"] = float(np.mean(np.abs(dp - 1.0) <= 0.05))
+        out.append(row)
     return out
 
 
@@ -356,12 +377,15 @@ def bench_holes(seeds: tuple[int, ...] = (0, 1, 2)) -> list[dict[str, object]]:
 RUTS_SETTLE_X_M = 3.0  # ruts: samples before the robot passes this x are the capture
 
 
-def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, object]]:
+def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, object]]:
     """The built-in ``ruts`` scenario in the simulator's runner (tilted laser as a scenario sensor), the rut
     follower in closed loop; seed n starts n * 0.05 m further left (0.15-0.35 m) and draws its own noise.
     Lateral error = signed distance of the robot's reference point from the true midline (the ruts' centre
-    polyline in the world), every physics step once the robot is past x = RUTS_SETTLE_X_M."""
+    polyline in the world), every physics step once the robot is past x = RUTS_SETTLE_X_M.
+    ``sil``: the same in the SIL (native firmware, radio link): the follower places its rut points with the
+    firmware's odometry instead of the true pose, and drives through the firmware's setpoints."""
     from agnav_host.perception import RutFollower, RutFollowerParams
+    from agnav_host.sil.session import run_sil_scenario
     from agnav_host.sim.runner import run_scenario
 
     base = load_scenario("ruts")
@@ -372,7 +396,8 @@ def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, objec
     for seed in seeds:
         sc = replace(base, start=replace(base.start, y_m=base.start.y_m + 0.05 * seed))
         ctrl = RutFollower(RutFollowerParams(tilted=TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)))
-        res = run_scenario(sc, "rut_follower", seed=seed, controller=ctrl)
+        res = (run_sil_scenario(sc, "rut_follower", seed=seed, controller=ctrl).run if sil
+               else run_scenario(sc, "rut_follower", seed=seed, controller=ctrl))
         tr = res.trajectory
         e = signed_offset_m(tr[:, 1], tr[:, 2], mid)
         keep = tr[:, 1] > RUTS_SETTLE_X_M
@@ -382,12 +407,14 @@ def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, objec
     return out
 
 
-def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, object]]:
+def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, object]]:
     """The built-in ``hole_field`` (three holes of ref 000 in the way to a goal 24 m ahead) in the simulator's
     runner: the goal-seeking stand-in reads only the horizontal laser; wrapped in GroundGuard, the tilted laser's
     holes reach it as posts. Clearance = nearest approach of the robot's disc (radius from the scenario) to each
-    hole's rim, from the world's hole shapes."""
+    hole's rim, from the world's hole shapes. ``sil``: the same in the SIL (native firmware, radio link), the
+    holes mapped with the firmware's odometry and the SIL host's goal-seeking parameters."""
     from agnav_host.perception import GroundGuard, GroundGuardParams
+    from agnav_host.sil.session import PlannerHost, run_sil_scenario
     from agnav_host.sim.controller import make_standin
     from agnav_host.sim.runner import _standin_params, run_scenario
 
@@ -397,10 +424,15 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str,
     r = sc.robot_params.radius_m
     out = []
     for seed in seeds:
-        plain = run_scenario(sc, "goal_seek", seed=seed)
-        guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)),
-                            GroundGuardParams(TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)))
-        res = run_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard)
+        gp = GroundGuardParams(TiltedMount(tl.height_m, tl.tilt_rad, tl.mount))
+        if sil:
+            plain = run_sil_scenario(sc, "goal_seek", seed=seed).run
+            guard = GroundGuard(make_standin("goal_seek", PlannerHost.planner_params(sc)), gp)
+            res = run_sil_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard).run
+        else:
+            plain = run_scenario(sc, "goal_seek", seed=seed)
+            guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)), gp)
+            res = run_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard)
         tr = res.trajectory
         clear = [_disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], r, h) for h in sc.world.holes]
         out.append({"seed": seed, "plain_end": plain.end_reason, "plain_x": float(plain.trajectory[-1, 1]),
@@ -513,7 +545,7 @@ def bench_latency(repeats: int = 400) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="rows,proximity,face,holes,ruts,hole_field,latency")
+    ap.add_argument("--only", default="rows,proximity,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
     ap.add_argument("--methods", default=",".join(row_method_names()))
     ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
                     help="where the closed-loop figures go (PNG; '' for none)")
@@ -548,6 +580,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {r['seed']} | {r['world_seed']} | {r['mean']:.3f} | {r['sd']:.3f} "
                   f"| {r['min']:.3f} ({r['x_min']:.1f}) | {r['max']:.3f} ({r['x_max']:.1f}) | {100.0 * r['inside']:.1f} % "
                   f"| {r['whole_min']:.3f}-{r['whole_max']:.3f} | {r['est_err_max']:.3f} | {r['ctrl_err_max']:.3f} |")
+        print("\n(the same runs against the row as planted: the bushes' centres averaged over a stretch of row of each "
+              "length, instead of the design sine they were planted along with 5 cm jitter)")
+        print("| seed | " + " | ".join(f"{w:g} m: mean +- sd, min-max, within +-0.05" for w in PLANTED_WINDOWS_M) + " |")
+        print("|---|" + "---|" * len(PLANTED_WINDOWS_M))
+        for r in pr:
+            print(f"| {r['seed']} | " + " | ".join(
+                f"{r[f'planted{w:g}_mean']:.3f} +- {r[f'planted{w:g}_sd']:.3f}, {r[f'planted{w:g}_min']:.3f}-"
+                f"{r[f'planted{w:g}_max']:.3f}, {100.0 * r[f'planted{w:g}_inside']:.1f} %" for w in PLANTED_WINDOWS_M) + " |")
         sys.stdout.flush()
     if "face" in parts:
         fl = bush_face_floor()
@@ -571,23 +611,31 @@ def main(argv: list[str] | None = None) -> int:
         tot = sum(bool(r["detected"]) for r in hr)
         print(f"| all | | {tot}/{len(hr)} ({100.0 * tot / len(hr):.0f} %) | |")
         sys.stdout.flush()
-    if "ruts" in parts:
-        ruts_res = bench_ruts()
-        print("\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser in the runner")
+    for part, sil, where in (("ruts", False, "the runner, true pose"), ("ruts_sil", True, "the SIL: native firmware, "
+                                                                         "radio link, the firmware's odometry")):
+        if part not in parts:
+            continue
+        res_r = bench_ruts(sil=sil)
+        ruts_res = ruts_res or res_r
+        print(f"\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser; {where}")
         print(f"(lateral error to the true midline, every physics step once the robot is past x = {RUTS_SETTLE_X_M:.0f} m)")
         print("| seed | start offset, m | end | x reached, m | mean abs(e), m | sd, m | max abs(e), m |")
         print("|---|---|---|---|---|---|---|")
-        for r in ruts_res:
+        for r in res_r:
             print(f"| {r['seed']} | {r['start_e']:+.3f} | {r['end']} | {r['x_end']:.1f} | {r['mean_abs']:.3f} | {r['sd']:.3f} "
                   f"| {r['max_abs']:.3f} |")
         sys.stdout.flush()
-    if "hole_field" in parts:
-        holes_res = bench_hole_field()
-        print("\n## Holes in closed loop: hole_field.toml, goal seeking with and without GroundGuard (tilted laser)")
+    for part, sil, where in (("hole_field", False, "the runner, true pose"), ("hole_field_sil", True, "the SIL: native "
+                                                                                 "firmware, radio link, the firmware's odometry")):
+        if part not in parts:
+            continue
+        res_h = bench_hole_field(sil=sil)
+        holes_res = holes_res or res_h
+        print(f"\n## Holes in closed loop: hole_field.toml, goal seeking with and without GroundGuard (tilted laser); {where}")
         print("(clearance = nearest approach of the robot's disc to each hole's rim; negative = over the hole)")
         print("| seed | without guard | with guard | time, s | path, m | clearance to holes 1 / 2 / 3, m | scans with a detection |")
         print("|---|---|---|---|---|---|---|")
-        for r in holes_res:
+        for r in res_h:
             cl = " / ".join(f"{c:.2f}" for c in r["clearance_m"])  # type: ignore[attr-defined]
             print(f"| {r['seed']} | {r['plain_end']} at x = {r['plain_x']:.1f} m | {r['end']} | {r['t_s']:.1f} | {r['length_m']:.1f} "
                   f"| {cl} | {r['detections']} |")

@@ -27,8 +27,8 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..sim.metrics import RunMetrics
-from ..sim.runner import TRAJECTORY_COLUMNS, RunResult, _standin_params, write_outputs
-from ..sim.controller import GoalSeekParams, make_standin
+from ..sim.runner import HOLE_FALL_DEPTH_M, TRAJECTORY_COLUMNS, RunResult, _standin_params, write_outputs
+from ..sim.controller import Controller, GoalSeekParams, make_standin
 from ..sim.robots import DiffDrive
 from ..sim.scenario import Scenario
 from ..types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
@@ -70,7 +70,8 @@ class SilSession:
         self.seed = seed
         self.cfg = cfg = config or SilConfig()
         ss = np.random.SeedSequence(seed)
-        rng_robot, self.rng_laser, rng_sonar, rng_up, rng_down = (np.random.default_rng(s) for s in ss.spawn(5))
+        # (a sixth stream for the tilted laser leaves the first five as they were)
+        rng_robot, self.rng_laser, rng_sonar, rng_up, rng_down, self.rng_tilted = (np.random.default_rng(s) for s in ss.spawn(6))
         self.plant = Plant(sc, rng_robot, rng_sonar, cfg.plant)
         params = dict(self.plant.firmware_params())
         params.update(dict(cfg.firmware_params))
@@ -234,9 +235,12 @@ class PlannerHost:
     pose) but the planner places it with the believed pose, as the real host does."""
 
     def __init__(self, sc: Scenario, planner: str = "goal_seek", heartbeat_hz: float = 2.0,
-                 control_hz: float | None = None, behaviours: tuple[bool, bool, bool] | None = None) -> None:
+                 control_hz: float | None = None, behaviours: tuple[bool, bool, bool] | None = None,
+                 controller: Controller | None = None) -> None:
         self.sc = sc
-        if planner == "goal_seek":
+        if controller is not None:  # built by the caller (e.g. a perception follower); planner is its label
+            self.ctrl = controller
+        elif planner == "goal_seek":
             self.ctrl = make_standin(planner, self.planner_params(sc))
         else:  # a host planner of agnav_host.planning, built as the ideal runner builds it
             from ..sim import runner as _runner
@@ -244,6 +248,8 @@ class PlannerHost:
             self.ctrl = _runner._make_controller(sc, planner)  # type: ignore[attr-defined]
         self.ctrl.reset()
         self.uses_sonar = bool(getattr(self.ctrl, "uses_sonar", False))
+        # a scenario's tilted laser (ruts, holes) for a controller that reads it, as the ideal runner does
+        self.uses_tilted = sc.tilted_laser is not None and bool(getattr(self.ctrl, "uses_tilted_laser", False))
         self.hb_us = int(1e6 / heartbeat_hz)
         self.ctrl_us = int(1e6 / (control_hz or sc.control_hz))
         self.next_hb = 0
@@ -361,6 +367,11 @@ class PlannerHost:
         assert o is not None
         sonar = self.sonar_frame(s) if self.uses_sonar else None
         extras = self.observation_extras(s) if self.observation_extras is not None else {}
+        if self.uses_tilted:
+            tl = self.sc.tilted_laser
+            assert tl is not None
+            ts = tl.scan(s.plant.world, s.pose, s.t_s, s.rng_tilted)  # cast from the true pose, placed with the believed one
+            extras["tilted_scan"] = replace(ts, pose=pose.compose(tl.mount))
         cmd = self.ctrl.step(Observation(s.t_s, pose, o.speed_m_s, o.yaw_rate_rad_s, goal, scan, sonar, extras))
         h.setpoint_si(*self.to_setpoint(cmd))
         self.commands.append((t_us, cmd))
@@ -378,15 +389,17 @@ class SilRunResult:
 
 def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, duration_s: float | None = None,
                      goal: Goal | None = None, config: SilConfig | None = None,
-                     progress: Callable[[float, float], None] | None = None) -> SilRunResult:
+                     progress: Callable[[float, float], None] | None = None,
+                     controller: Controller | None = None) -> SilRunResult:
     """The ideal runner's scenario loop with the real firmware in the loop (same metrics and
-    end reasons: arrived, collision, fell_in_hole, timeout)."""
+    end reasons: arrived, collision, fell_in_hole, timeout). ``controller``: a controller built by the
+    caller instead of the named ``planner`` (which then only labels the run)."""
     import time
 
     if goal is not None:
         sc = replace(sc, goals=[goal])
     duration = sc.duration_s if duration_s is None else duration_s
-    host = PlannerHost(sc, planner)
+    host = PlannerHost(sc, planner, controller=controller)
     s = SilSession(sc, seed, config, host)
     wall0 = time.perf_counter()
     try:
@@ -412,6 +425,11 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
             if cl < 0.0:
                 reason = "collision"
                 break
+            if sc.world.holes:
+                cx, cy = r.footprint_centre()
+                if float(s.plant.world.ground_height_m(np.array(cx), np.array(cy))) < -HOLE_FALL_DEPTH_M:
+                    reason = "fell_in_hole"
+                    break
             g = sc.goals[gi]
             if math.hypot(g.x_m - p.x_m, g.y_m - p.y_m) <= g.tolerance_m:
                 if gi + 1 < len(sc.goals):

@@ -20,7 +20,9 @@ import numpy as np
 
 from ..types import FloatArray, norm_angle_rad
 
-__all__ = ["signed_offset_m", 
+__all__ = [
+    "signed_offset_m",
+    "along_and_offset_m",
     "SUMMARY_KEYS",
     "path_length_m",
     "bending_energy",
@@ -183,10 +185,20 @@ class RunMetrics:
 def signed_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> FloatArray:
     """Signed distance (m) of points (px[i], py[i]) from a polyline line (k, 2), positive left of
     its direction: how far a robot runs beside a row, a rut's midline or a planned path."""
+    return along_and_offset_m(px, py, line)[1]
+
+
+def along_and_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Row coordinates of points (px[i], py[i]) against a polyline line (k, 2): the arc length (m) from
+    the line's first point to each point's foot on it, and the signed distance (m, positive left of the
+    line's direction) from the foot."""
     a, d = line[:-1], np.diff(line, axis=0)
+    seg = np.hypot(d[:, 0], d[:, 1])
+    s0 = np.concatenate(([0.0], np.cumsum(seg)[:-1]))
     qx, qy = px[:, None] - a[None, :, 0], py[:, None] - a[None, :, 1]
     u = np.clip((qx * d[None, :, 0] + qy * d[None, :, 1]) / (d**2).sum(axis=1)[None, :], 0.0, 1.0)
     ex, ey = qx - u * d[None, :, 0], qy - u * d[None, :, 1]
     j = np.argmin(np.hypot(ex, ey), axis=1)
     i = np.arange(len(j))
-    return np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
+    n = np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
+    return s0[j] + u[i, j] * seg[j], n
