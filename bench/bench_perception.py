@@ -1,7 +1,7 @@
 """Perception benchmark: closed-loop row following, proximity following, hole detection, latency.
 
 Run:  .venv/bin/python bench/bench_perception.py            (all, a few minutes)
-      .venv/bin/python bench/bench_perception.py --only rows,proximity,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency
+      .venv/bin/python bench/bench_perception.py --only rows,proximity,proximity_sil,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency
 Everything is seeded; the figures go to bench/results/perception.md by hand.
 
 * rows: five runs per detection method ("clean": reached the row end without touching a crop plant;
@@ -27,7 +27,7 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
   runner with the tilted laser as a scenario sensor and the rut follower in closed loop; lateral error = signed
   distance from the ruts' true midline (the world's polyline), every physics step past x = 3 m (the capture:
   the robot starts 0.14-0.33 m off the midline, 9 deg off its direction).
-* ruts_sil, hole_field_sil: the same two in the SIL (native firmware, radio link): the controllers place what the
+* proximity_sil, ruts_sil, hole_field_sil: the same in the SIL (native firmware, radio link): the controllers place what the
   tilted laser sees with the firmware's odometry, not the simulator's true pose.
 * hole_field: the built-in hole_field (holes of ref 000 in the way to a goal 24 m ahead) run by the runner, the
   goal-seeking stand-in without and with GroundGuard (the tilted laser's holes as posts in its scan); the
@@ -51,7 +51,7 @@ from typing import Callable
 
 import numpy as np
 
-from agnav_host.sim.metrics import along_and_offset_m, signed_offset_m
+from agnav_host.sim.metrics import along_and_offset_m, disc_clearance_to_hole_m, signed_offset_m
 from agnav_host.perception import (
     GroundParams,
     ProximityFollower,
@@ -266,7 +266,11 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
     return out
 
 
-def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, float]]:
+def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, float]]:
+    """Proximity following (module docstring). ``sil``: in the SIL (native firmware, radio link, the firmware's
+    odometry for the follower's row map; ends within 0.5 m of the path's point at x = 47 m); the follower's own
+    estimate is then not compared (NaN)."""
+    from agnav_host.sil.session import run_sil_scenario
     from agnav_host.sim.world import sine_curve
 
     out = []
@@ -293,21 +297,27 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> list[dict[str, 
                 own.append((obs.t_s, math.nan if est is None else est))
                 return cmd
 
-        traj = closed_loop(sc, Logged(), seed, 150.0, stop=lambda p: p.x_m > 47.0)
+        if sil:
+            end = _beside_row(47.0, params.side, params.distance_m)
+            sc = replace(sc, goals=[Goal(end.x_m, end.y_m, tolerance_m=0.5)])
+            traj = run_sil_scenario(sc, "proximity", seed=seed, controller=Logged(), duration_s=150.0).run.trajectory[:, :4]
+            own.clear()  # SIL control steps are stamped in firmware time, not the trajectory's
+        else:
+            traj = closed_loop(sc, Logged(), seed, 150.0, stop=lambda p: p.x_m > 47.0)
         s_all, n_all = along_and_offset_m(traj[:, 1], traj[:, 2], centre)
         d_all = np.abs(n_all)
         keep = traj[:, 1] > PROXIMITY_SETTLE_X_M
         x = traj[keep, 1]
         d = d_all[keep]
-        o = np.asarray(own)
+        o = np.asarray(own) if own else np.array([[0.0, math.nan], [1.0, math.nan]])
         d_est = np.interp(traj[keep, 0], o[:, 0], o[:, 1])  # the follower's estimate, between its control steps
         row = {"seed": seed, "world_seed": 7 + seed, "half_width_m": half_width_m, "mean": float(d.mean()),
                "sd": float(d.std()), "min": float(d.min()), "max": float(d.max()),
                "x_min": float(x[np.argmin(d)]), "x_max": float(x[np.argmax(d)]),
                "inside": float(np.mean(np.abs(d - 1.0) <= 0.05)), "length_m": float(traj[-1, 1]),
                "whole_min": float(d_all.min()), "whole_max": float(d_all.max()),
-               "est_err_max": float(np.nanmax(np.abs(d_est - d))),
-               "ctrl_err_max": float(np.nanmax(np.abs(d_est - 1.0)))}
+               "est_err_max": float(np.max(np.abs(d_est - d))),
+               "ctrl_err_max": float(np.max(np.abs(d_est - 1.0)))}
         # the same run against the row as planted: the bushes' own line, not the design sine they were planted along
         bc = bush_centres(sc)
         s_b, n_b = along_and_offset_m(bc[:, 0], bc[:, 1], centre)
@@ -434,30 +444,11 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False
             guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)), gp)
             res = run_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard)
         tr = res.trajectory
-        clear = [_disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], r, h) for h in sc.world.holes]
+        clear = [disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], r, h) for h in sc.world.holes]
         out.append({"seed": seed, "plain_end": plain.end_reason, "plain_x": float(plain.trajectory[-1, 1]),
                     "end": res.end_reason, "t_s": float(tr[-1, 0]), "length_m": float(res.metrics.path_length_m),
                     "clearance_m": clear, "detections": guard.detections, "traj": tr})
     return out
-
-
-def _disc_clearance_to_hole_m(px: np.ndarray, py: np.ndarray, radius_m: float, hole: Hole, grid_m: float = 0.02) -> float:
-    """Smallest distance from the disc's edge (centre (px, py), radius) to any point of the hole, m
-    (negative: the disc overlaps the hole). The hole is sampled on a ``grid_m`` grid."""
-    xs = np.arange(-hole.size_x_m / 2, hole.size_x_m / 2 + 1e-9, grid_m)
-    ys = np.arange(-hole.size_y_m / 2, hole.size_y_m / 2 + 1e-9, grid_m)
-    lx, ly = (a.ravel() for a in np.meshgrid(xs, ys))
-    if hole.elliptic:
-        m = (lx / (hole.size_x_m / 2)) ** 2 + (ly / (hole.size_y_m / 2)) ** 2 <= 1.0
-        lx, ly = lx[m], ly[m]
-    c, s = math.cos(hole.yaw_rad), math.sin(hole.yaw_rad)
-    hx, hy = hole.x_m + c * lx - s * ly, hole.y_m + s * lx + c * ly
-    # only the samples near the path matter: thin both out first
-    best = math.inf
-    for k in range(0, len(px), 200):
-        d = np.hypot(px[k:k + 200, None] - hx[None, :], py[k:k + 200, None] - hy[None, :])
-        best = min(best, float(d.min()))
-    return best - radius_m
 
 
 def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[dict[str, object]] | None) -> list[str]:
@@ -545,7 +536,7 @@ def bench_latency(repeats: int = 400) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="rows,proximity,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
+    ap.add_argument("--only", default="rows,proximity,proximity_sil,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
     ap.add_argument("--methods", default=",".join(row_method_names()))
     ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
                     help="where the closed-loop figures go (PNG; '' for none)")
@@ -567,9 +558,12 @@ def main(argv: list[str] | None = None) -> int:
             clean = sum(bool(r[2]) for r in runs)
             print(f"| {m} | {mean:.4f} +- {sd:.4f} | {', '.join(f'{r[0]:.4f}' for r in runs)} | {clean}/{len(runs)} | {refs} | {better} |")
         sys.stdout.flush()
-    if "proximity" in parts:
-        pr = bench_proximity()
-        print("\n## Proximity following, curvy_row (50 m), target 1.00 +- 0.05 m from the row centre line")
+    for part, sil, where in (("proximity", False, "the runner"), ("proximity_sil", True, "the SIL: native firmware, radio "
+                                                                          "link, the firmware's odometry")):
+        if part not in parts:
+            continue
+        pr = bench_proximity(sil=sil)
+        print(f"\n## Proximity following, curvy_row (50 m), target 1.00 +- 0.05 m from the row centre line; {where}")
         print(f"(every physics step once the robot is past x = {PROXIMITY_SETTLE_X_M:.0f} m; each seed its own bushes; visible "
               f"half-width {pr[0]['half_width_m']:.3f} m, mean of calibration drives on world_seeds "
               f"{', '.join(str(7 + s) for s in PROXIMITY_CALIBRATION_SEEDS)})")

@@ -14,15 +14,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..types import FloatArray, norm_angle_rad
 
+if TYPE_CHECKING:
+    from .world import Hole
+
 __all__ = [
     "signed_offset_m",
     "along_and_offset_m",
+    "disc_clearance_to_hole_m",
     "SUMMARY_KEYS",
     "path_length_m",
     "bending_energy",
@@ -202,3 +206,22 @@ def along_and_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> tupl
     i = np.arange(len(j))
     n = np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
     return s0[j] + u[i, j] * seg[j], n
+
+
+def disc_clearance_to_hole_m(px: FloatArray, py: FloatArray, radius_m: float, hole: Hole, grid_m: float = 0.02) -> float:
+    """Smallest distance from the disc's edge (centre (px, py), radius) to any point of the hole, m
+    (negative: the disc overlaps the hole) over a path of disc centres. The hole is sampled on a ``grid_m`` grid."""
+    xs = np.arange(-hole.size_x_m / 2, hole.size_x_m / 2 + 1e-9, grid_m)
+    ys = np.arange(-hole.size_y_m / 2, hole.size_y_m / 2 + 1e-9, grid_m)
+    lx, ly = (a.ravel() for a in np.meshgrid(xs, ys))
+    if hole.elliptic:
+        m = (lx / (hole.size_x_m / 2)) ** 2 + (ly / (hole.size_y_m / 2)) ** 2 <= 1.0
+        lx, ly = lx[m], ly[m]
+    c, s = math.cos(hole.yaw_rad), math.sin(hole.yaw_rad)
+    hx, hy = hole.x_m + c * lx - s * ly, hole.y_m + s * lx + c * ly
+    # only the samples near the path matter: thin both out first
+    best = math.inf
+    for k in range(0, len(px), 200):
+        d = np.hypot(px[k:k + 200, None] - hx[None, :], py[k:k + 200, None] - hy[None, :])
+        best = min(best, float(d.min()))
+    return best - radius_m
