@@ -262,6 +262,15 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
             run = num / np.maximum(den, 1.0)
             m = (st > 2.0 + w / 2) & (st < 46.0 - w / 2)
             row[f"w{w:g}"] = float(np.max(np.abs(run[m] - mean)))
+        # the bushes' centres themselves (mean of each bush's circles) against the design line, same windows
+        bc = bush_centres(curvy_row_scenario(seed))
+        bth = np.arctan(1.5 * k * np.cos(k * bc[:, 0]))
+        boff = (bc[:, 1] - 1.5 * np.sin(k * bc[:, 0])) * np.cos(bth)
+        for w in windows_m:
+            centre_x = np.arange(2.0 + w / 2, 46.0 - w / 2, 0.05)
+            near_b = np.abs(bc[None, :, 0] - centre_x[:, None]) <= w / 2
+            run_b = (near_b * boff[None, :]).sum(axis=1) / np.maximum(near_b.sum(axis=1), 1)
+            row[f"c{w:g}"] = float(np.max(np.abs(run_b)))
         out.append(row)
     return out
 
@@ -586,11 +595,13 @@ def main(argv: list[str] | None = None) -> int:
     if "face" in parts:
         fl = bush_face_floor()
         print("\n(the bushes' face against the plant line: largest deviation of its running mean over 3 / 6 / 11 m of row "
-              "from the world's mean face, m; a floor for any follower that sees only the face)")
-        print("| seed | mean face, m from the plant line | 3 m | 6 m | 11 m |")
-        print("|---|---|---|---|---|")
+              "from the world's mean face, m; a floor for any follower that sees only the face. The bush centres' columns: "
+              "the same for the bushes' centres against the design line - where the plants themselves stand off it)")
+        print("| seed | mean face, m from the plant line | face 3 m | 6 m | 11 m | bush centres 3 m | 6 m | 11 m |")
+        print("|---|---|---|---|---|---|---|---|")
         for r in fl:
-            print(f"| {r['seed']} | {r['face_mean_m']:+.3f} | {r['w3']:.3f} | {r['w6']:.3f} | {r['w11']:.3f} |")
+            print(f"| {r['seed']} | {r['face_mean_m']:+.3f} | {r['w3']:.3f} | {r['w6']:.3f} | {r['w11']:.3f} "
+                  f"| {r['c3']:.3f} | {r['c6']:.3f} | {r['c11']:.3f} |")
         sys.stdout.flush()
     if "holes" in parts:
         hr = bench_holes()

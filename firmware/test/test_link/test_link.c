@@ -4,6 +4,7 @@
 
 #include "hal.h"
 #include "link.h"
+#include "link_wire.h"
 #include "params.h"
 #include "sim/hal_sim.h"
 
@@ -17,29 +18,10 @@ static const PARAMS_ROM param_def_t TABLE[] = {
 
 static mavlink_message_t s_msg;
 
-static void send_to_robot(const mavlink_message_t *msg)
-{
-    uint8_t buf[MAVLINK_MAX_PACKET_LEN];
-    uint16_t len = mavlink_msg_to_send_buffer(buf, msg);
-    TEST_ASSERT_EQUAL_UINT16(len, sim_uart_put_rx(HAL_UART_LINK, buf, len));
-}
+static void send_to_robot(const mavlink_message_t *msg) { wire_send(msg); }
 
-/* Parse what the robot sent; returns how many frames of msgid were seen, last one in s_msg. */
-static uint8_t robot_sent(uint32_t msgid)
-{
-    static mavlink_message_t rx;
-    static mavlink_status_t st;
-    uint8_t b;
-    uint8_t n = 0;
-    memset(&st, 0, sizeof st);
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK && rx.msgid == msgid) {
-            s_msg = rx;
-            n++;
-        }
-    }
-    return n;
-}
+/* Frames of msgid the robot sent (drained), the last one in s_msg. */
+static uint8_t robot_sent(uint32_t msgid) { return wire_take(msgid, &s_msg); }
 
 void setUp(void)
 {
@@ -81,7 +63,7 @@ static void test_link_bad_crc_is_counted_and_not_applied(void)
     mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, 1, 1, 100, 500, 0, 0, 0, 1);
     uint16_t len = mavlink_msg_to_send_buffer(buf, &s_msg);
     buf[12] ^= 0x10u; /* a payload bit flipped on the radio */
-    sim_uart_put_rx(HAL_UART_LINK, buf, len);
+    wire_put(buf, len);
     link_poll(10u);
     TEST_ASSERT_FALSE(link_state()->setpoint.valid);
     TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_errors);

@@ -5,6 +5,7 @@
 
 #include "hal.h"
 #include "link.h"
+#include "link_wire.h"
 #include "params.h"
 #include "signing.h"
 #include "sim/hal_sim.h"
@@ -54,8 +55,20 @@ static uint16_t wire(const mavlink_message_t *msg, uint8_t *buf) { return mavlin
 
 static void feed(const uint8_t *buf, uint16_t len)
 {
-    TEST_ASSERT_EQUAL_UINT16(len, sim_uart_put_rx(HAL_UART_LINK, buf, len));
+    wire_put(buf, len);
     link_poll(s_now_ms);
+}
+
+/* Drain the robot's output; true when its last frame was signed (n: how many frames there were). */
+static bool last_sent_signed(uint8_t *n)
+{
+    static mavlink_message_t last;
+    memset(&last, 0, sizeof last);
+    uint8_t k = wire_take(WIRE_ANY_MSG, &last);
+    if (n != NULL) {
+        *n = k;
+    }
+    return k > 0u && (last.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
 }
 
 /* An e-stop COMMAND_LONG on the wire in buf; returns its length. */
@@ -290,20 +303,9 @@ static void test_signing_timestamp_is_stored_and_restored_ahead_after_reboot(voi
 static void test_signing_robot_signs_its_telemetry(void)
 {
     setup_signing(NULL, KEY, T0);
-    uint8_t b;
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-    }
+    (void)last_sent_signed(NULL); /* drain */
     link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
-    static mavlink_message_t rx;
-    static mavlink_status_t st;
-    memset(&st, 0, sizeof st);
-    bool signed_frame = false;
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
-            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
-        }
-    }
-    TEST_ASSERT_TRUE(signed_frame);
+    TEST_ASSERT_TRUE(last_sent_signed(NULL));
 }
 
 /* SIGN_TELEM = 0: the robot's own frames go out unsigned, received frames are still checked. */
@@ -311,23 +313,11 @@ static void test_signing_telemetry_unsigned_when_off_but_commands_still_verified
 {
     setup_signing(NULL, KEY, T0);
     signing_set_sign_telemetry(false);
-    uint8_t b;
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-    }
+    (void)last_sent_signed(NULL); /* drain */
     link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
-    static mavlink_message_t rx;
-    static mavlink_status_t st;
-    memset(&st, 0, sizeof st);
     uint8_t frames = 0u;
-    bool signed_frame = true;
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
-            frames++;
-            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
-        }
-    }
+    TEST_ASSERT_FALSE(last_sent_signed(&frames));
     TEST_ASSERT_EQUAL_UINT8(1u, frames);
-    TEST_ASSERT_FALSE(signed_frame);
     run_ms(WINDOW_MS + 10u); /* window closed */
     estop(NULL, T0 + 100000u, 1.0f);
     TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "unsigned command refused with SIGN_TELEM off");
@@ -336,13 +326,7 @@ static void test_signing_telemetry_unsigned_when_off_but_commands_still_verified
     TEST_ASSERT_TRUE_MESSAGE(link_state()->estop, "signed command accepted");
     signing_set_sign_telemetry(true);
     link_send_statustext(MAV_SEVERITY_INFO, LINK_TEXT("hello"));
-    signed_frame = false;
-    while (sim_uart_take_tx(HAL_UART_LINK, &b, 1u) == 1u) {
-        if (mavlink_frame_char_buffer(&rx, &st, b, NULL, NULL) == MAVLINK_FRAMING_OK) {
-            signed_frame = (rx.incompat_flags & MAVLINK_IFLAG_SIGNED) != 0u;
-        }
-    }
-    TEST_ASSERT_TRUE_MESSAGE(signed_frame, "signed again when switched back on");
+    TEST_ASSERT_TRUE_MESSAGE(last_sent_signed(NULL), "signed again when switched back on");
 }
 
 /* With a key, a signed frame is hashed only when the hash (and the signed answer) ends before
@@ -360,7 +344,7 @@ static void test_signing_frame_waits_for_room_before_control_tick_then_is_handle
     static uint8_t buf[2u * MAVLINK_MAX_PACKET_LEN];
     uint16_t n = estop_frame(KEY, T0 + 100u, 1.0f, buf);
     n = (uint16_t)(n + estop_frame(KEY, T0 + 200u, 0.0f, buf + n)); /* engage, then release */
-    TEST_ASSERT_EQUAL_UINT16(n, sim_uart_put_rx(HAL_UART_LINK, buf, n));
+    wire_put(buf, n);
 
     due_us = hal_time_us() + SIGNING_MARGIN_US; /* the control tick is due before any hash ends */
     for (uint8_t k = 0; k < 5u; k++) {
@@ -381,7 +365,7 @@ static void test_signing_frame_waits_for_room_before_control_tick_then_is_handle
 
     /* never room: the frame goes through after a bounded wait rather than block the link */
     n = estop_frame(KEY, T0 + 300u, 1.0f, buf);
-    TEST_ASSERT_EQUAL_UINT16(n, sim_uart_put_rx(HAL_UART_LINK, buf, n));
+    wire_put(buf, n);
     due_us = hal_time_us();
     for (uint8_t k = 0; k < 20u && !link_state()->estop; k++) {
         link_poll(s_now_ms);
