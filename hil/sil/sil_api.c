@@ -15,7 +15,6 @@
 void agnav_setup(void);
 void agnav_loop_once(void);
 
-enum { EV_ENCODER = 0, EV_ECHO = 1, EV_ECHO_FAULT = 2 /* an echo made by SIL_SONAR_ZERO */ };
 
 
 static struct {
@@ -64,8 +63,8 @@ static void on_trigger(uint8_t idx, uint32_t t_us)
     S.trig_new++;
     if (idx < HAL_SONAR_MAX && S.sonar_fault[idx] == SIL_SONAR_ZERO) {
         uint64_t rise = S.now_us + SIL_SONAR_ZERO_DELAY_US;
-        (void)ev_push(EV_ECHO_FAULT, idx, 1u, rise);
-        (void)ev_push(EV_ECHO_FAULT, idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
+        (void)ev_push(SIL_EV_ECHO_FAULT, idx, 1u, rise);
+        (void)ev_push(SIL_EV_ECHO_FAULT, idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
     }
 }
 
@@ -163,10 +162,10 @@ static void deliver_due(void)
         if (e.t_us < S.now_us) {
             S.late++;
         }
-        if (e.kind == EV_ENCODER) {
+        if (e.kind == SIL_EV_ENCODER) {
             encoder_deliver(e.idx, e.val);
         } else {
-            echo_deliver(e.idx, e.val, e.kind == EV_ECHO_FAULT);
+            echo_deliver(e.idx, e.val, e.kind == SIL_EV_ECHO_FAULT);
         }
         isr_cost();
     }
@@ -256,19 +255,10 @@ void sil_encoder_edge(uint8_t idx, uint8_t ab) { encoder_deliver(idx, ab); }
 
 uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_t *ab, uint32_t n)
 {
-    uint32_t k = 0u;
-    for (; k < n; k++) {
-        if (!ev_push(EV_ENCODER, idx, ab[k], t_us[k])) {
-            break;
-        }
-    }
-    return k;
+    return sil_ev_push_edges(s_heap, SIL_EVENT_MAX, &S.ev_n, &S.ev_seq, idx, t_us, ab, n);
 }
 
-int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level)
-{
-    return ev_push(EV_ECHO, idx, level != 0u, t_us);
-}
+int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(SIL_EV_ECHO, idx, level != 0u, t_us); }
 
 uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
 {
@@ -402,7 +392,7 @@ uint32_t sil_isr_burst(uint8_t idx, uint32_t n, uint32_t period_us)
     uint32_t k = 0u;
     for (; k < n; k++) {
         phase = (uint8_t)((phase + 1u) & 3u);
-        if (!ev_push(EV_ENCODER, idx, GRAY[phase], S.now_us + (uint64_t)(k + 1u) * period_us)) {
+        if (!ev_push(SIL_EV_ENCODER, idx, GRAY[phase], S.now_us + (uint64_t)(k + 1u) * period_us)) {
             break;
         }
     }

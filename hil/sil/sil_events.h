@@ -8,6 +8,10 @@
 
 #include <stdint.h>
 
+/* What an event is: an encoder's A/B levels, an echo line's level, or an echo the SIL made up for
+ * a sonar told to read zero (SIL_SONAR_ZERO). */
+enum { SIL_EV_ENCODER = 0, SIL_EV_ECHO = 1, SIL_EV_ECHO_FAULT = 2 };
+
 typedef struct {
     uint64_t t_us;
     uint64_t seq; /* queueing order: ties keep it */
@@ -40,6 +44,18 @@ static inline int sil_ev_push(sil_event_t *heap, uint32_t cap, uint32_t *n, uint
     }
     heap[i] = e;
     return 1;
+}
+
+/* Push count encoder edges of encoder idx (levels ab[k] at t_us[k]) in order; stops at the first
+ * that does not fit and returns how many went in (both backends' sil_queue_encoder_edges). */
+static inline uint32_t sil_ev_push_edges(sil_event_t *heap, uint32_t cap, uint32_t *n, uint64_t *seq, uint8_t idx,
+                                         const uint64_t *t_us, const uint8_t *ab, uint32_t count)
+{
+    uint32_t k = 0u;
+    while (k < count && sil_ev_push(heap, cap, n, seq, SIL_EV_ENCODER, idx, ab[k], t_us[k])) {
+        k++;
+    }
+    return k;
 }
 
 /* Pop the earliest event; *n must be > 0. */

@@ -99,7 +99,6 @@
 #define RXEN0_BIT 4u
 #define OPCODE_WDR 0x95A8u
 
-enum { EV_ENCODER = 0, EV_ECHO = 1, EV_ECHO_FAULT = 2 /* made by SIL_SONAR_ZERO */ };
 #define REG_MCUSR 0x54u /* WDRF bit 3, BORF 2, EXTRF 1, PORF 0 */
 
 typedef sil_event_t ev_t;
@@ -383,8 +382,8 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
     S.trig_new++;
     if (S.sonar_fault[idx] == SIL_SONAR_ZERO) {
         uint64_t rise = now_cycle() / CYC_PER_US + SIL_SONAR_ZERO_DELAY_US;
-        (void)ev_push(EV_ECHO_FAULT, (uint8_t)idx, 1u, rise);
-        (void)ev_push(EV_ECHO_FAULT, (uint8_t)idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
+        (void)ev_push(SIL_EV_ECHO_FAULT, (uint8_t)idx, 1u, rise);
+        (void)ev_push(SIL_EV_ECHO_FAULT, (uint8_t)idx, 0u, rise + SIL_SONAR_ZERO_ECHO_US);
     }
     if (S.stop_on_trigger) {
         uint64_t dl = now_cycle() + SIL_AVR_TRIGGER_SETTLE_US * CYC_PER_US;
@@ -616,10 +615,10 @@ static void deliver_due(void)
         if (e.t_us < now) {
             S.late++;
         }
-        if (e.kind == EV_ENCODER) {
+        if (e.kind == SIL_EV_ENCODER) {
             enc_deliver(e.idx, e.val);
         } else {
-            echo_deliver(e.idx, e.val, e.kind == EV_ECHO_FAULT);
+            echo_deliver(e.idx, e.val, e.kind == SIL_EV_ECHO_FAULT);
         }
     }
 }
@@ -686,16 +685,10 @@ void sil_encoder_edge(uint8_t idx, uint8_t ab) { enc_deliver(idx, ab); }
 
 uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_t *ab, uint32_t n)
 {
-    uint32_t k = 0u;
-    for (; k < n; k++) {
-        if (!ev_push(EV_ENCODER, idx, ab[k], t_us[k])) {
-            break;
-        }
-    }
-    return k;
+    return sil_ev_push_edges(s_heap, SIL_EVENT_MAX, &S.ev_n, &S.ev_seq, idx, t_us, ab, n);
 }
 
-int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(EV_ECHO, idx, level != 0u, t_us); }
+int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(SIL_EV_ECHO, idx, level != 0u, t_us); }
 
 uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
 {
@@ -960,7 +953,7 @@ uint32_t sil_isr_burst(uint8_t idx, uint32_t n, uint32_t period_us)
     uint32_t k = 0u;
     for (; k < n; k++) {
         phase = (uint8_t)((phase + 1u) & 3u);
-        if (!ev_push(EV_ENCODER, idx, GRAY[phase], now + (uint64_t)(k + 1u) * period_us)) {
+        if (!ev_push(SIL_EV_ENCODER, idx, GRAY[phase], now + (uint64_t)(k + 1u) * period_us)) {
             break;
         }
     }
