@@ -32,7 +32,8 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
 * hole_field: the built-in hole_field (holes of ref 000 in the way to a goal 24 m ahead) run by the runner, the
   goal-seeking stand-in without and with GroundGuard (the tilted laser's holes as posts in its scan); the
   robot's disc's nearest approach to each hole's rim, from the world's hole shapes.
-* latency: median wall time of detection + one control step on an 811-beam TiM561 scan in a row field.
+* latency: median wall time of detection + one control step on an 811-beam TiM561 scan in a row field, and of
+  one ProximityFollower step on the curvy row once its row map is full.
 
 Figures of the closed-loop tilted-laser runs go to ``--plots DIR`` (default bench/results/perception/).
 """
@@ -540,7 +541,32 @@ def bench_latency(repeats: int = 400) -> dict[str, float]:
             ctrl.step(obs)
             times.append(time.perf_counter() - t0)
         out[m] = statistics.median(times[20:])
+    out["proximity follower"] = bench_proximity_step()
     return out
+
+
+def bench_proximity_step(n_scans: int = 700, timed_from: int = 400) -> float:
+    """Median wall time (s) of one ProximityFollower step (row map, smoother, filter, law) on the curvy row,
+    pushed along the 1 m path at 0.5 m/s, 15 scans/s; timed once the map holds its full 11.5 m of travel."""
+    sc = curvy_row_scenario(0)
+    assert sc.laser is not None
+    ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, speed_m_s=0.5, mount=sc.laser.mount,
+                                                     row_half_width_m=0.141))
+    ctrl.reset()
+    rng = np.random.default_rng(0)
+    rate = 15.0
+    prev = _beside_row(0.0, "left", 1.0)
+    times = []
+    for i in range(n_scans):
+        pose = _beside_row(i * 0.5 / rate, "left", 1.0)
+        v = math.hypot(pose.x_m - prev.x_m, pose.y_m - prev.y_m) * rate
+        w = norm_angle_rad(pose.yaw_rad - prev.yaw_rad) * rate
+        prev = pose
+        obs = Observation(i / rate, pose, v, w, Goal(0.0, 0.0), sc.laser.scan(sc.world, pose, i / rate, rng))
+        t0 = time.perf_counter()
+        ctrl.step(obs)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times[timed_from:])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -651,6 +677,8 @@ def main(argv: list[str] | None = None) -> int:
     if "latency" in parts:
         lat = bench_latency()
         print("\n## Latency: detection + control, one 811-beam TiM561 scan (median)")
+        print("(row methods: RowFollower in a row lane; proximity follower: its whole step with the row map full, "
+              "curvy row)")
         print("| method | median, ms |")
         print("|---|---|")
         for m, t in lat.items():

@@ -15,6 +15,7 @@ from agnav_host.perception import (
     RowNavigatorParams,
     headland_path,
 )
+from agnav_host.sim.metrics import signed_offset_m
 from agnav_host.sim.scenario import Scenario, parse_scenario
 from agnav_host.types import DriveCommand, Goal, LaserScan, Observation, Pose2D
 
@@ -193,12 +194,12 @@ def test_proximity_follower_holds_the_distance_through_a_bend(smooth_cutoff_m):
     centre = sine_curve(0.0, 0.0, 0.0, 16.0, 1.5, 24.0, step_m=0.05)
     late = traj[(traj[:, 1] > 2.0) & (traj[:, 1] < 13.0)]
     assert len(late) > 100, "did not get through the bend"
-    a, b = centre[:-1], centre[1:]
-    d = b - a
-    q = late[:, None, 1:3] - a[None]
-    u = np.clip((q * d[None]).sum(-1) / (d**2).sum(-1)[None], 0.0, 1.0)
-    dist = np.hypot(q[..., 0] - u * d[None, :, 0], q[..., 1] - u * d[None, :, 1]).min(axis=1)
-    assert np.abs(dist - 1.0).max() < 0.04, f"distance {dist.min():.3f}-{dist.max():.3f} m"
+    dist = np.abs(signed_offset_m(late[:, 1], late[:, 2], centre))
+    start, bend = late[:, 1] < 3.0, late[:, 1] >= 3.0
+    # the first metres of row: the map has no row behind the robot yet; measured on a drive along the exact 1 m
+    # path, the estimate there reads up to 4 cm too far and the curvature up to 0.03 1/m too tight
+    assert np.abs(dist[start] - 1.0).max() < 0.045, f"row start: distance {dist[start].min():.3f}-{dist[start].max():.3f} m"
+    assert np.abs(dist[bend] - 1.0).max() < 0.03, f"through the bend: distance {dist[bend].min():.3f}-{dist[bend].max():.3f} m"
     assert dist.mean() == pytest.approx(1.0, abs=0.02)
     assert traj[:, 4].min() > 0.0
 

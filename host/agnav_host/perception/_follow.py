@@ -299,7 +299,10 @@ class _RowFaceMap:
         self.s = 0.0  # travel, m
         self._t: float | None = None
         self._vw = (0.0, 0.0)
-        self._scans: list[tuple[float, FloatArray]] = []  # (travel when seen, face points in the odometry frame)
+        # the map: face points in the odometry frame, how many returns each averages, the travel when seen
+        self._xy = np.zeros((0, 2))
+        self._wt = np.zeros(0)
+        self._seen_s = np.zeros(0)
         self.coef: FloatArray | None = None  # y = sum coef[i] x^i in the robot frame at fit_pose
         self.fit_pose = np.zeros(3)
 
@@ -334,25 +337,36 @@ class _RowFaceMap:
             b0 = -math.tan(est.heading_rad)
             a0 = est.offset_m / math.cos(math.atan(b0))
             sel &= np.abs(y - (a0 + b0 * x + 0.5 * est.curvature_1_m * x * x)) < p.gate_m
-        self._scans.append((self.s, odo[sel]))
-        keep_from = self.s - p.window_back_m - max(0.0, p.x_max_m)
-        while self._scans and self._scans[0][0] < keep_from:
-            self._scans.pop(0)
+        # thinned on arrival: the scan's points averaged per half fit bin along its own x (a curved row turns
+        # less than a degree over a bin), kept with their counts so that fit() weighs every return as before
+        xs, pts_sel = x[sel], odo[sel]
+        if len(xs):
+            b = np.floor((xs - p.x_min_m) / p.bin_m).astype(int)
+            n = np.bincount(b)
+            ok = n > 0
+            mean = np.column_stack((np.bincount(b, pts_sel[:, 0])[ok], np.bincount(b, pts_sel[:, 1])[ok])) / n[ok, None]
+            self._xy = np.concatenate((self._xy, mean))
+            self._wt = np.concatenate((self._wt, n[ok].astype(float)))
+            self._seen_s = np.concatenate((self._seen_s, np.full(len(mean), self.s)))
+        first = int(np.searchsorted(self._seen_s, self.s - p.window_back_m - max(0.0, p.x_max_m)))
+        if first:
+            self._xy, self._wt, self._seen_s = self._xy[first:], self._wt[first:], self._seen_s[first:]
 
     def fit(self) -> SingleRowEstimate | None:
         p = self.p
-        if not self._scans:
+        if not len(self._wt):
             return None
-        rx, ry = self._to_frame(self.pose, np.vstack([sc[1] for sc in self._scans]))
+        rx, ry = self._to_frame(self.pose, self._xy)
+        wt = self._wt
         m = (rx >= -p.window_back_m) & (rx <= p.window_ahead_m)
-        rx, ry = rx[m], ry[m]
-        if len(rx) < 10:
+        rx, ry, wt = rx[m], ry[m], wt[m]
+        if wt.sum() < 10:
             return None
         b = np.floor((rx + p.window_back_m) / p.bin_m).astype(int)
-        n = np.bincount(b)
+        n = np.bincount(b, wt)
         ok = n > 0
-        bx = np.bincount(b, rx)[ok] / n[ok]
-        by = np.bincount(b, ry)[ok] / n[ok]
+        bx = np.bincount(b, rx * wt)[ok] / n[ok]
+        by = np.bincount(b, ry * wt)[ok] / n[ok]
         if p.smooth_cutoff_m > 0 and np.ptp(bx) > 2.0:
             return self._fit_smooth(bx, by, n[ok])
         deg = p.fit_degree if np.ptp(bx) > 2.0 else min(p.fit_degree, 1)
