@@ -174,8 +174,10 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     from .sim.scenario import ScenarioError, load_scenario
     from .types import Goal
 
+    from .sim.field_controllers import is_field_controller
+
     names = _planner_names()
-    if ns.planner not in names and ns.planner.replace("_", "-") not in names:
+    if ns.planner not in names and ns.planner.replace("_", "-") not in names and not is_field_controller(ns.planner):
         print(f"agnav sim: unknown planner {ns.planner!r}; known: {', '.join(names)}", file=sys.stderr)
         return 2
     try:
@@ -183,6 +185,14 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     except ScenarioError as e:
         print(f"agnav sim: {e}", file=sys.stderr)
         return 2
+    if ns.planner != "goal_seek":
+        from .sim.runner import _make_controller
+
+        try:  # a name the scenario cannot run (no tilted laser, a bad meta entry...) fails here, not mid-run
+            _make_controller(sc, ns.planner)
+        except ValueError as e:
+            print(f"agnav sim: {e}", file=sys.stderr)
+            return 2
     goal = None
     if ns.goal is not None:
         x, y, hdg = ns.goal

@@ -11,12 +11,18 @@ from ..cli import subcommand
 __all__: list[str] = []
 
 
-@subcommand("planners", help="list the host planners (names for agnav sim --planner)")
+@subcommand("planners", help="list the host planners and perception controllers (names for agnav sim --planner)")
 def _cmd_planners(ns: argparse.Namespace) -> int:
     from .registry import describe
 
+    from ..sim.field_controllers import FIELD_CONTROLLERS, GUARD_SUFFIX
+
     for name, summary in describe().items():
-        print(f"{name:12s} {summary}")
+        print(f"{name:13s} {summary}")
+    for name, summary in FIELD_CONTROLLERS.items():
+        print(f"{name:13s} {summary}")
+    print(f"(any name{GUARD_SUFFIX}: the same with the tilted laser's holes and steps as obstacles; goal_seek = the "
+          "simulator's stand-in)")
     return 0
 
 

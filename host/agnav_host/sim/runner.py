@@ -47,10 +47,12 @@ class RunResult:
 
 
 def planner_names() -> list[str]:
-    """Every name ``run_scenario`` accepts: the stand-ins and the host planners of agnav_host.planning."""
+    """Every name ``run_scenario`` accepts: the stand-ins, the host planners of agnav_host.planning and the
+    perception controllers of :mod:`.field_controllers` (any of them also with ``+ground-guard``)."""
     from ..planning.registry import planner_names as host_planners
+    from .field_controllers import field_controller_names
 
-    return sorted(STANDINS) + host_planners()
+    return sorted(STANDINS) + host_planners() + field_controller_names()
 
 
 def robot_spec(sc: Scenario) -> "RobotSpec":
@@ -74,6 +76,10 @@ def robot_spec(sc: Scenario) -> "RobotSpec":
 
 
 def _make_controller(sc: Scenario, planner: str) -> Controller:
+    from .field_controllers import is_field_controller, make_field_controller
+
+    if is_field_controller(planner):
+        return make_field_controller(sc, planner, _make_controller)
     if planner in STANDINS:
         return make_standin(planner, _standin_params(sc))
     from ..planning.registry import canonical_name, make_planner
