@@ -35,7 +35,7 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
 * latency: median wall time of detection + one control step on an 811-beam TiM561 scan in a row field, and of
   one ProximityFollower step on the curvy row once its row map is full.
 
-Figures of the closed-loop tilted-laser runs go to ``--plots DIR`` (default bench/results/perception/).
+Figures of the closed-loop runs (ruts, hole_field, proximity) go to ``--plots DIR`` (default bench/results/perception/).
 """
 
 from __future__ import annotations
@@ -276,7 +276,7 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
     return out
 
 
-def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, float]]:
+def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, object]]:
     """Proximity following (module docstring). ``sil``: in the SIL (native firmware, radio link, the firmware's
     odometry for the follower's row map; ends within 0.5 m of the path's point at x = 47 m); the follower's own
     estimate is then not compared (NaN)."""
@@ -331,6 +331,7 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False)
         # the same run against the row as planted: the bushes' own line, not the design sine they were planted along
         bc = bush_centres(sc)
         s_b, n_b = along_and_offset_m(bc[:, 0], bc[:, 1], centre)
+        row["trace"] = (x, d, np.abs(n_all[keep] - planted_row_offset_m(s_all[keep], s_b, n_b, 3.0)))  # type: ignore[assignment]
         for w in PLANTED_WINDOWS_M:
             dp = np.abs(n_all[keep] - planted_row_offset_m(s_all[keep], s_b, n_b, w))
             row[f"planted{w:g}_mean"], row[f"planted{w:g}_sd"] = float(dp.mean()), float(dp.std())
@@ -461,8 +462,10 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False
     return out
 
 
-def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[dict[str, object]] | None) -> list[str]:
-    """Trajectory figures of the closed-loop tilted-laser runs (PNG); [] when matplotlib is missing."""
+def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[dict[str, object]] | None,
+               proximity: list[dict[str, object]] | None = None) -> list[str]:
+    """Figures of the closed-loop runs (PNG): rut following and hole avoidance with the tilted laser, and the
+    proximity following's distance along the row; [] when matplotlib is missing."""
     try:
         import matplotlib
 
@@ -518,6 +521,22 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         fig.savefig(f"{out_dir}/hole_field.png", dpi=110)
         plt.close(fig)
         written.append(f"{out_dir}/hole_field.png")
+    if proximity:
+        fig, axes = plt.subplots(len(proximity), 1, figsize=(10, 1.6 * len(proximity) + 0.8), sharex=True, squeeze=False)
+        for ax, r in zip(axes[:, 0], proximity):
+            x, d, dp = r["trace"]  # type: ignore[misc]
+            ax.axhspan(95, 105, color="0.9", lw=0)
+            ax.plot(x, 100 * d, lw=0.8, label="to the design line")
+            ax.plot(x, 100 * dp, lw=0.8, label="to the row as planted (bush centres, 3 m)")
+            ax.set_ylabel(f"seed {r['seed']}\ncm", fontsize=8)
+            ax.set_ylim(90, 110)
+        axes[0, 0].legend(fontsize=7, ncol=2, loc="upper right")
+        axes[0, 0].set_title("curvy_row: the robot's distance from the row (grey: 1 m +- 5 cm)")
+        axes[-1, 0].set_xlabel("x, m")
+        fig.tight_layout()
+        fig.savefig(f"{out_dir}/proximity.png", dpi=110)
+        plt.close(fig)
+        written.append(f"{out_dir}/proximity.png")
     return written
 
 
@@ -579,6 +598,7 @@ def main(argv: list[str] | None = None) -> int:
     parts = set(ns.only.split(","))
     ruts_res: list[dict[str, object]] | None = None
     holes_res: list[dict[str, object]] | None = None
+    prox_res: list[dict[str, object]] | None = None
     if "rows" in parts:
         res = bench_rows(ns.methods.split(","))
         print("## Row following, 8 m lane, rows 0.75 m apart, TiM310-like, 10 % gaps, weeds (5 runs)")
@@ -598,6 +618,8 @@ def main(argv: list[str] | None = None) -> int:
         if part not in parts:
             continue
         pr = bench_proximity(sil=sil)
+        if not sil:
+            prox_res = pr
         print(f"\n## Proximity following, curvy_row (50 m), target 1.00 +- 0.05 m from the row centre line; {where}")
         print(f"(every physics step once the robot is past x = {PROXIMITY_SETTLE_X_M:.0f} m; each seed its own bushes; visible "
               f"half-width {pr[0]['half_width_m']:.3f} m, mean of calibration drives on world_seeds "
@@ -671,8 +693,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {r['seed']} | {r['plain_end']} at x = {r['plain_x']:.1f} m | {r['end']} | {r['t_s']:.1f} | {r['length_m']:.1f} "
                   f"| {cl} | {r['detections']} |")
         sys.stdout.flush()
-    if ns.plots and (ruts_res or holes_res):
-        for path in save_plots(ns.plots, ruts_res, holes_res):
+    if ns.plots and (ruts_res or holes_res or prox_res):
+        for path in save_plots(ns.plots, ruts_res, holes_res, prox_res):
             print(f"\n(figure: {path})")
     if "latency" in parts:
         lat = bench_latency()
