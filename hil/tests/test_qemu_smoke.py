@@ -22,15 +22,19 @@ def arm_firmware() -> Path:
     return ELF
 
 
+def _boot(elf: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        ["qemu-system-arm", "-M", "netduinoplus2", "-display", "none", "-monitor", "none", "-serial", "stdio",
+         "-kernel", str(elf)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+
+
 def test_arm_firmware_boots_heartbeats_and_acknowledges_a_command(arm_firmware):
     d = dialect()
     host = d.MAVLink(None, srcSystem=255, srcComponent=190)
     parser = d.MAVLink(None)
     cmd = d.MAVLink_command_long_message(1, 1, d.MAV_CMD_AGNAV_ESTOP, 0, 1, 0, 0, 0, 0, 0, 0).pack(host)
-    proc = subprocess.Popen(
-        ["qemu-system-arm", "-M", "netduinoplus2", "-display", "none", "-monitor", "none", "-serial", "stdio",
-         "-kernel", str(arm_firmware)],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    proc = _boot(arm_firmware)
     seen: dict[str, list] = {}
     sent = False
     deadline = time.monotonic() + 20.0
@@ -62,3 +66,41 @@ def test_arm_firmware_boots_heartbeats_and_acknowledges_a_command(arm_firmware):
     assert acks[0].command == d.MAV_CMD_AGNAV_ESTOP and acks[0].result == d.MAV_RESULT_ACCEPTED
     status = seen.get("AGNAV_BEHAVIOUR_STATUS", [])
     assert status and status[-1].failsafe_flags & d.AGNAV_FAILSAFE_ESTOP, "e-stop not reflected in the status"
+
+
+def test_arm_firmware_answers_every_request_of_a_burst_once_and_in_order(arm_firmware):
+    """30 PARAM_REQUEST_READs (indices 0..29) in one write, about 0.6 kB: the 256-byte receive ring wraps
+    twice while the link drains it, and the answers queue behind the telemetry in the transmit ring.
+    Exactly one PARAM_VALUE per index, in order (a ring that loses, repeats or reorders bytes shows here),
+    and no bad frame from the robot."""
+    d = dialect()
+    host = d.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = d.MAVLink(None)
+    burst = b"".join(d.MAVLink_param_request_read_message(1, 1, b"", k).pack(host) for k in range(30))
+    proc = _boot(arm_firmware)
+    indices: list[int] = []
+    sent_at = None
+    deadline = time.monotonic() + 20.0
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    try:
+        # after the 30th answer keep listening 1 s more: a repeated request would answer again
+        while time.monotonic() < deadline and not (len(indices) >= 30 and time.monotonic() > sent_at + 1.0):
+            if not sel.select(timeout=0.2):
+                continue
+            chunk = os.read(proc.stdout.fileno(), 4096)
+            if not chunk:
+                break
+            for msg in parser.parse_buffer(chunk) or []:
+                if msg.get_type() == "HEARTBEAT" and sent_at is None:
+                    proc.stdin.write(burst)
+                    proc.stdin.flush()
+                    sent_at = time.monotonic()
+                elif msg.get_type() == "PARAM_VALUE":
+                    indices.append(msg.param_index)
+    finally:
+        proc.kill()
+        proc.wait(timeout=5)
+    assert sent_at is not None, "no heartbeat: the firmware did not boot"
+    assert indices == list(range(30)), f"{len(indices)} PARAM_VALUEs, indices begin {indices[:40]}"
+    assert parser.total_receive_errors == 0, f"{parser.total_receive_errors} bad frames from the robot"

@@ -1,7 +1,7 @@
 /*
  * STM32F405 backend of the AgNav HAL (register level after RM0090, no vendor library).
  * Pin map and the board assumed: board.h.
- *   link UART   USART1 PA9 TX / PA10 RX, polled
+ *   link UART   USART1 PA9 TX / PA10 RX, interrupt-driven rings (RX 256 B, TX 512 B)
  *   time        SysTick at 1 kHz from the core clock + the current-value register
  *   servos      TIM3 CH1/CH2 (PA6, PA7), 50 Hz, 1 us resolution
  *   H-bridges   TIM4 CH1/CH2 (PB6, PB7), 20 kHz, 8-bit duty scaled to the period; DIR on GPIO
@@ -193,6 +193,55 @@ static void gpio_clocks_on(void)
 }
 
 /* ---- serial ------------------------------------------------------------- */
+/* Rings as on the AVR: the USART1 vector only moves bytes (RXNE -> RX ring; TXE, while TXEIE is on,
+ * TX ring -> DR); the loop copies in and out. Writes never wait for the line: hal_uart_write takes
+ * what fits and hal_uart_tx_space says how much will. After queueing, the writer also feeds DR while
+ * TXE is set (with the vector masked): on silicon that is one or two bytes before TXE clears and
+ * the vector takes over; under QEMU, which completes every byte at once and never raises TXE,
+ * it sends everything there and then. */
+#define IRQ_USART1 37u
+#define USART_SR_ORE (1u << 3)
+#define USART_SR_RXNE (1u << 5)
+#define USART_SR_TXE (1u << 7)
+#define USART_CR1_RXNEIE (1u << 5)
+#define USART_CR1_TXEIE (1u << 7)
+#define UART_RX_SIZE 256u /* powers of two: the indices wrap with a mask */
+#define UART_TX_SIZE 512u
+
+static volatile uint8_t s_rx[UART_RX_SIZE];
+static volatile uint16_t s_rx_head; /* written by the vector */
+static volatile uint16_t s_rx_tail; /* written by the loop */
+static volatile uint16_t s_rx_overruns; /* bytes lost: ring full or the USART's own overrun */
+static volatile uint8_t s_tx[UART_TX_SIZE];
+static volatile uint16_t s_tx_head; /* written by the loop */
+static volatile uint16_t s_tx_tail; /* written by the vector (or the loop with the vector masked) */
+
+void USART1_IRQHandler(void)
+{
+    uint32_t sr = USART1_SR;
+    if ((sr & (USART_SR_RXNE | USART_SR_ORE)) != 0u) {
+        uint8_t b = (uint8_t)USART1_DR; /* clears RXNE (and ORE after the SR read) */
+        uint16_t next = (uint16_t)((s_rx_head + 1u) & (UART_RX_SIZE - 1u));
+        if ((sr & USART_SR_ORE) != 0u) {
+            s_rx_overruns++;
+        }
+        if (next == s_rx_tail) {
+            s_rx_overruns++;
+        } else if ((sr & USART_SR_RXNE) != 0u) {
+            s_rx[s_rx_head] = b;
+            s_rx_head = next;
+        }
+    }
+    if ((USART1_CR1 & USART_CR1_TXEIE) != 0u && (sr & USART_SR_TXE) != 0u) {
+        if (s_tx_tail != s_tx_head) {
+            USART1_DR = s_tx[s_tx_tail];
+            s_tx_tail = (uint16_t)((s_tx_tail + 1u) & (UART_TX_SIZE - 1u));
+        } else {
+            USART1_CR1 &= ~USART_CR1_TXEIE; /* empty: off until the next write */
+        }
+    }
+}
+
 void hal_uart_init(uint8_t port, uint32_t baud)
 {
     if (port != HAL_UART_LINK || baud == 0u) {
@@ -203,8 +252,20 @@ void hal_uart_init(uint8_t port, uint32_t baud)
     gpio_config(BOARD_UART_RX_PIN, GPIO_MODE_AF, GPIO_PULL_UP, BOARD_UART_AF);
     RCC_APB2ENR |= (1u << 4);
     (void)RCC_APB2ENR;
+    s_rx_head = s_rx_tail = 0u;
+    s_tx_head = s_tx_tail = 0u;
+    s_rx_overruns = 0u;
     USART1_BRR = APB2_HZ / baud; /* 16x oversampling: mantissa.fraction in one divide */
-    USART1_CR1 = (1u << 13) | (1u << 3) | (1u << 2); /* UE, TE, RE */
+    USART1_CR1 = (1u << 13) | (1u << 3) | (1u << 2) | USART_CR1_RXNEIE; /* UE, TE, RE, RXNEIE */
+    NVIC_ISER(IRQ_USART1 >> 5) = 1u << (IRQ_USART1 & 31u);
+}
+
+uint16_t hal_uart_tx_space(uint8_t port)
+{
+    if (port != HAL_UART_LINK) {
+        return 0u;
+    }
+    return (uint16_t)((s_tx_tail - s_tx_head - 1u) & (UART_TX_SIZE - 1u));
 }
 
 uint16_t hal_uart_write(uint8_t port, const uint8_t *data, uint16_t len)
@@ -212,12 +273,24 @@ uint16_t hal_uart_write(uint8_t port, const uint8_t *data, uint16_t len)
     if (port != HAL_UART_LINK) {
         return 0u;
     }
-    for (uint16_t i = 0; i < len; i++) {
-        while ((USART1_SR & (1u << 7)) == 0u) {
-        }
-        USART1_DR = data[i];
+    uint16_t room = hal_uart_tx_space(port);
+    uint16_t n = len < room ? len : room;
+    uint16_t head = s_tx_head;
+    for (uint16_t i = 0; i < n; i++) {
+        s_tx[head] = data[i];
+        head = (uint16_t)((head + 1u) & (UART_TX_SIZE - 1u));
     }
-    return len;
+    hal_irq_state_t st = hal_irq_save();
+    s_tx_head = head;
+    while (s_tx_tail != s_tx_head && (USART1_SR & USART_SR_TXE) != 0u) {
+        USART1_DR = s_tx[s_tx_tail];
+        s_tx_tail = (uint16_t)((s_tx_tail + 1u) & (UART_TX_SIZE - 1u));
+    }
+    if (s_tx_tail != s_tx_head) {
+        USART1_CR1 |= USART_CR1_TXEIE;
+    }
+    hal_irq_restore(st);
+    return n;
 }
 
 uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
@@ -226,13 +299,14 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
     if (port != HAL_UART_LINK) {
         return 0u;
     }
-    while (n < max && (USART1_SR & (1u << 5))) { /* RXNE */
-        data[n++] = (uint8_t)USART1_DR;
+    uint16_t tail = s_rx_tail;
+    while (n < max && tail != s_rx_head) {
+        data[n++] = s_rx[tail];
+        tail = (uint16_t)((tail + 1u) & (UART_RX_SIZE - 1u));
     }
+    s_rx_tail = tail;
     return n;
 }
-
-uint16_t hal_uart_tx_space(uint8_t port) { return port == HAL_UART_LINK ? 0xFFFFu : 0u; }
 
 /* ---- EXTI: encoders on lines 0..7, echoes on lines 8..15 ------------------ */
 static hal_encoder_edge_fn s_encoder_fn;
