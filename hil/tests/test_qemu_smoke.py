@@ -104,3 +104,43 @@ def test_arm_firmware_answers_every_request_of_a_burst_once_and_in_order(arm_fir
     assert sent_at is not None, "no heartbeat: the firmware did not boot"
     assert indices == list(range(30)), f"{len(indices)} PARAM_VALUEs, indices begin {indices[:40]}"
     assert parser.total_receive_errors == 0, f"{parser.total_receive_errors} bad frames from the robot"
+
+
+def test_arm_firmware_stores_a_parameter_and_keeps_running(arm_firmware):
+    """PARAM_SET on the STM32 build goes through the flash EEPROM (lib/flash_eeprom): QEMU does not model
+    the flash controller, so the store falls back to RAM - the value is echoed and read back, and the
+    firmware keeps sending heartbeats afterwards (no fault from the flash path)."""
+    d = dialect()
+    host = d.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = d.MAVLink(None)
+    set_msg = d.MAVLink_param_set_message(1, 1, b"LINK_TIMEOUT_MS", 750.0, d.MAV_PARAM_TYPE_UINT16).pack(host)
+    read_msg = d.MAVLink_param_request_read_message(1, 1, b"LINK_TIMEOUT_MS", -1).pack(host)
+    proc = _boot(arm_firmware)
+    values: list[float] = []
+    beats_after = 0
+    sent = False
+    deadline = time.monotonic() + 20.0
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    try:
+        while time.monotonic() < deadline and not (len(values) >= 2 and beats_after >= 2):
+            if not sel.select(timeout=0.2):
+                continue
+            chunk = os.read(proc.stdout.fileno(), 4096)
+            if not chunk:
+                break
+            for msg in parser.parse_buffer(chunk) or []:
+                t = msg.get_type()
+                if t == "HEARTBEAT" and not sent:
+                    proc.stdin.write(set_msg + read_msg)
+                    proc.stdin.flush()
+                    sent = True
+                elif t == "HEARTBEAT" and len(values) >= 2:
+                    beats_after += 1
+                elif t == "PARAM_VALUE" and msg.param_id == "LINK_TIMEOUT_MS":
+                    values.append(msg.param_value)
+    finally:
+        proc.kill()
+        proc.wait(timeout=5)
+    assert values[:2] == [750.0, 750.0], f"LINK_TIMEOUT_MS echoed / read back as {values}"
+    assert beats_after >= 2, "no heartbeat after the parameter was stored"

@@ -8,7 +8,8 @@
  *   encoders    EXTI lines 0..7 (PC0..PC7), both edges
  *   sonars      GPIO trigger pulse; echoes on EXTI lines 8..15, both edges
  *   watchdog    IWDG from the ~32 kHz LSI
- *   EEPROM      emulated in RAM here (flash-page emulation is a later step)
+ *   EEPROM      4 KB emulated in flash sectors 1 and 2 (lib/flash_eeprom; the linker script keeps
+ *               code out of them), erase and program run from RAM
  *
  * Under QEMU netduinoplus2 (7.2) USART1, SysTick, NVIC, SYSCFG, EXTI's registers and TIM2..5
  * are modelled; GPIO, RCC, FLASH, IWDG and TIM1/8.. are "unimplemented" (reads 0, writes
@@ -22,6 +23,7 @@
 
 #include "../hal.h"
 #include "board.h"
+#include "flash_eeprom.h"
 
 #include <string.h>
 
@@ -532,32 +534,107 @@ static void actuators_init(void)
 }
 
 /* ---- EEPROM ------------------------------------------------------------- */
+/* 4 KB in two 16 KB flash sectors (RM0090 3.3: sectors 1 and 2 at 0x08004000 / 0x08008000; the
+ * linker script puts the vectors in sector 0 and the code from sector 3 on): 3070 byte changes fit
+ * in a sector before the store moves to the other one, erasing it (16 KB: typ. 250 ms, max 500 ms,
+ * during which nothing runs from flash, interrupts included). Erase and program run from RAM and
+ * refresh the watchdog while the flash is busy. Under QEMU the flash controller is not modelled:
+ * the first program fails its read-back and the store keeps its values in RAM until reset. */
+#define FLASH_KEYR REG32(0x40023C04u)
+#define FLASH_SR REG32(0x40023C0Cu)
+#define FLASH_CR REG32(0x40023C10u)
+#define FLASH_SR_BSY (1u << 16)
+#define FLASH_SR_ERRORS (0xF2u) /* PGSERR PGPERR PGAERR WRPERR OPERR */
+#define FLASH_CR_PG (1u << 0)
+#define FLASH_CR_SER (1u << 1)
+#define FLASH_CR_SNB(n) ((uint32_t)(n) << 3)
+#define FLASH_CR_PSIZE_X32 (2u << 8)
+#define FLASH_CR_STRT (1u << 16)
+#define FLASH_CR_LOCK (1u << 31)
+#define FLASH_BUSY_LIMIT 100000000u /* ~2.4 s of polls at 168 MHz: more than a sector erase's 0.5 s max */
 #define EEPROM_EMU_SIZE 4096u
-static uint8_t s_eeprom[EEPROM_EMU_SIZE];
+#define EEPROM_SECTOR_FIRST 1u
+#define EEPROM_BANK_BYTES 0x4000u
+#define EEPROM_BANK_ADDR(b) (0x08004000u + EEPROM_BANK_BYTES * (uint32_t)(b))
+
+#define RAMFUNC __attribute__((section(".ramfunc"), noinline, long_call))
+
+/* One erase (word_addr NULL) or one word program, from RAM: the flash stalls every fetch from it
+ * until it is done. Returns the status register's error bits (0: done). */
+RAMFUNC static uint32_t flash_op_ram(uint32_t cr, volatile uint32_t *word_addr, uint32_t word)
+{
+    FLASH_SR = FLASH_SR_ERRORS | 1u; /* write-1-to-clear, EOP too */
+    FLASH_CR = cr;
+    if (word_addr != 0) {
+        *word_addr = word;
+    } else {
+        FLASH_CR = cr | FLASH_CR_STRT;
+    }
+    for (uint32_t n = 0; (FLASH_SR & FLASH_SR_BSY) != 0u && n < FLASH_BUSY_LIMIT; n++) {
+        IWDG_KR = 0xAAAAu;
+    }
+    FLASH_CR = 0u;
+    return FLASH_SR & (FLASH_SR_ERRORS | FLASH_SR_BSY);
+}
+
+static bool flash_op(uint32_t cr, volatile uint32_t *word_addr, uint32_t word)
+{
+    if ((FLASH_CR & FLASH_CR_LOCK) != 0u) {
+        FLASH_KEYR = 0x45670123u;
+        FLASH_KEYR = 0xCDEF89ABu;
+    }
+    hal_irq_state_t st = hal_irq_save();
+    uint32_t err = flash_op_ram(cr | FLASH_CR_PSIZE_X32, word_addr, word);
+    hal_irq_restore(st);
+    FLASH_CR = FLASH_CR_LOCK;
+    /* the data cache may hold what the sector read before: reset it (DCEN off, DCRST, DCEN on) */
+    uint32_t acr = FLASH_ACR;
+    FLASH_ACR = acr & ~(1u << 10);
+    FLASH_ACR = (acr & ~(1u << 10)) | (1u << 12);
+    FLASH_ACR = acr;
+    return err == 0u;
+}
+
+static bool eeprom_erase(uint8_t bank)
+{
+    return flash_op(FLASH_CR_SER | FLASH_CR_SNB(EEPROM_SECTOR_FIRST + bank), 0, 0u);
+}
+
+static bool eeprom_program(uint8_t bank, uint32_t offset, uint32_t word)
+{
+    return flash_op(FLASH_CR_PG, (volatile uint32_t *)(EEPROM_BANK_ADDR(bank) + offset), word);
+}
+
+static const fe_flash_t s_eeprom_flash = {
+    EEPROM_BANK_BYTES,
+    {(const volatile uint8_t *)EEPROM_BANK_ADDR(0), (const volatile uint8_t *)EEPROM_BANK_ADDR(1)},
+    eeprom_erase,
+    eeprom_program,
+};
+static fe_t s_eeprom;
+static uint8_t s_eeprom_mirror[EEPROM_EMU_SIZE];
 static bool s_eeprom_ready;
+
+static void eeprom_ready(void)
+{
+    if (!s_eeprom_ready) {
+        fe_init(&s_eeprom, &s_eeprom_flash, s_eeprom_mirror, EEPROM_EMU_SIZE);
+        s_eeprom_ready = true;
+    }
+}
 
 uint16_t hal_eeprom_size(void) { return (uint16_t)EEPROM_EMU_SIZE; }
 
 void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len)
 {
-    if (!s_eeprom_ready) {
-        memset(s_eeprom, 0xFF, sizeof s_eeprom);
-        s_eeprom_ready = true;
-    }
-    for (uint16_t i = 0; i < len; i++) {
-        ((uint8_t *)dst)[i] = (uint32_t)addr + i < EEPROM_EMU_SIZE ? s_eeprom[addr + i] : 0xFFu;
-    }
+    eeprom_ready();
+    fe_read(&s_eeprom, addr, dst, len);
 }
 
 void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
 {
-    if (!s_eeprom_ready) {
-        memset(s_eeprom, 0xFF, sizeof s_eeprom);
-        s_eeprom_ready = true;
-    }
-    for (uint16_t i = 0; i < len && (uint32_t)addr + i < EEPROM_EMU_SIZE; i++) {
-        s_eeprom[addr + i] = ((const uint8_t *)src)[i];
-    }
+    eeprom_ready();
+    (void)fe_write(&s_eeprom, addr, src, len);
 }
 
 /* ---- watchdog and reset cause ------------------------------------------- */
