@@ -85,10 +85,10 @@ faults: setup sil
 	$(VENV)/bin/agnav faults --markdown bench/results/faults.md
 
 # libFuzzer + ASan + UBSan on the firmware's MAVLink parser and handlers (firmware/fuzz/): builds
-# with clang into build/fuzz, runs SECONDS (default 60; MODE=both|crc|raw, WORKERS=1) and prints
+# with clang into build/fuzz, runs SECONDS (default 60; MODE=all|both|crc|raw|signed, WORKERS=1) and prints
 # executions, exec/s and findings; exits non-zero when anything was found (build/fuzz/artifacts).
 fuzz: setup
-	nice -n 10 $(PY) firmware/fuzz/fuzz.py run --seconds $(or $(SECONDS),60) --mode $(or $(MODE),both) --workers $(or $(WORKERS),1)
+	nice -n 10 $(PY) firmware/fuzz/fuzz.py run --seconds $(or $(SECONDS),60) --mode $(or $(MODE),all) --workers $(or $(WORKERS),1)
 
 size: setup
 	$(PIO) run -s -e megaatmega2560

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Build and run the firmware link fuzzer (libFuzzer), its seed corpus and its replay driver.
 
-    python firmware/fuzz/fuzz.py run [--seconds 60] [--mode both|crc|raw] [--workers 1]
-    python firmware/fuzz/fuzz.py build        # clang + libFuzzer targets (build/fuzz/fuzz_link_{raw,crc})
+    python firmware/fuzz/fuzz.py run [--seconds 60] [--mode all|both|crc|raw|signed] [--workers 1]
+    python firmware/fuzz/fuzz.py build        # clang + libFuzzer targets (build/fuzz/fuzz_link_{raw,crc,signed})
     python firmware/fuzz/fuzz.py replay-build # gcc + ASan/UBSan replay driver (build/fuzz/fuzz_replay)
     python firmware/fuzz/fuzz.py corpus       # seed corpus (build/fuzz/corpus)
     python firmware/fuzz/fuzz.py coverage     # gcov line coverage of link.c, main.c... per mode
@@ -37,7 +37,10 @@ CORPUS = OUT / "corpus"
 ARTIFACTS = OUT / "artifacts"
 DICT = HERE / "mavlink.dict"
 REGRESSIONS = HERE / "regressions"
-MODES = {"raw": 0, "crc": 1}
+MODES = {"raw": 0, "crc": 1, "signed": 2}
+# run --mode all / both: the share of the time each mode gets
+SHARES = {"all": {"crc": 0.6, "raw": 0.2, "signed": 0.2}, "both": {"crc": 0.75, "raw": 0.25}}
+REPLAY_FLAGS = {"raw": [], "crc": ["--fix-crc"], "signed": ["--sign"]}
 
 # -std=c11, not the SIL's gnu11: glibc then declares no BSD extras (finite, ...) that a firmware
 # static helper could clash with under clang; the firmware itself needs no GNU extension.
@@ -281,9 +284,9 @@ def summary(res: dict) -> str:
 def cmd_run(a: argparse.Namespace) -> int:
     bins = build_fuzzers()
     n = write_corpus()
-    modes = ["crc", "raw"] if a.mode == "both" else [a.mode]
-    # both: three quarters of the time to the deep (CRC-fixing) mode, the rest to raw framing
-    share = {"crc": 0.75, "raw": 0.25} if a.mode == "both" else {a.mode: 1.0}
+    # all: most of the time to the deep (CRC-fixing) mode, the rest to raw framing and to signing on
+    share = SHARES.get(a.mode, {a.mode: 1.0})
+    modes = list(share)
     print(f"fuzz: {n} seed inputs in {CORPUS.relative_to(REPO)}, {a.seconds} s, workers {a.workers}", flush=True)
     results = []
     for mode in modes:
@@ -305,11 +308,11 @@ def cmd_coverage(a: argparse.Namespace) -> int:
     """Line coverage (gcov) of the link and handler sources reached by replaying a corpus."""
     binary = build_replay(coverage=True)
     objdir = OUT / "cov-obj"
-    for mode in (["crc", "raw"] if a.mode == "both" else [a.mode]):
+    for mode in SHARES.get(a.mode, {a.mode: 1.0}):
         corpus = Path(a.corpus).resolve() if a.corpus else OUT / f"corpus-{mode}"
         for f in objdir.glob("*.gcda"):
             f.unlink()
-        r = subprocess.run([str(binary), *(["--fix-crc"] if mode == "crc" else []), str(corpus)],
+        r = subprocess.run([str(binary), *REPLAY_FLAGS[mode], str(corpus)],
                            cwd=objdir, capture_output=True, text=True)
         if r.returncode != 0:
             print(r.stdout[-2000:], r.stderr[-2000:])
@@ -328,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run")
     r.add_argument("--seconds", type=int, default=60)
-    r.add_argument("--mode", choices=["both", "crc", "raw"], default="both")
+    r.add_argument("--mode", choices=["all", "both", "crc", "raw", "signed"], default="all")
     r.add_argument("--workers", type=int, default=1)
     r.add_argument("--timeout", type=int, default=2, help="seconds per input before it counts as a hang")
     # 512 bytes hold several whole frames (the longest is 280); longer inputs cost run time per input
@@ -338,7 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     rb.add_argument("--coverage", action="store_true")
     sub.add_parser("corpus")
     c = sub.add_parser("coverage")
-    c.add_argument("--mode", choices=["both", "crc", "raw"], default="both")
+    c.add_argument("--mode", choices=["all", "both", "crc", "raw", "signed"], default="all")
     c.add_argument("--corpus", help="folder of inputs (default build/fuzz/corpus-<mode>)")
     a = ap.parse_args(argv)
     if a.cmd == "run":

@@ -18,14 +18,20 @@
  * Oracle, besides the sanitizers: everything the firmware sends back must be whole MAVLink
  * frames with a correct CRC (no torn frame, no stray byte); anything else calls abort().
  *
- * Two modes (fuzz_fix_crc; the libFuzzer build sets it with -DFUZZ_FIX_CRC=1, the replay
- * driver with --fix-crc):
+ * Three modes (fuzz_fix_crc; the libFuzzer build sets it with -DFUZZ_FIX_CRC=1 or 2, the replay
+ * driver with --fix-crc or --sign):
  *   0  the bytes go to the firmware as they are: mutated frames mostly fail the CRC, so this
  *      mode tests the framing and the error counting;
  *   1  the harness first walks the input as the parser would and rewrites the CRC of every
  *      MAVLink 1 or 2 frame it describes (with the message's crc_extra), so mutated payloads
- *      reach the message decoders and handlers.
- * The same corpus and dictionary serve both modes.
+ *      reach the message decoders and handlers;
+ *   2  signing on: after the power-on the firmware gets a key (signing_set_key), and every
+ *      MAVLink 2 frame the input describes is re-emitted with the signed flag, its CRC and a
+ *      valid signature block under that key (link id from the input, timestamps rising from
+ *      FUZZ_SIGN_T0), so mutated payloads pass the signature check and reach the handlers with
+ *      signing on (key changes, replay windows, signed answers); MAVLink 1 frames and the
+ *      bytes between frames go through unchanged (and are refused as unsigned).
+ * The same corpus and dictionary serve all modes.
  */
 #include <stddef.h>
 #include <stdint.h>
@@ -36,6 +42,7 @@
 
 #include "fuzz_link.h"
 #include "sil_api.h"
+#include "signing.h"
 
 #ifndef FUZZ_FIX_CRC
 #define FUZZ_FIX_CRC 0
@@ -46,7 +53,14 @@
 
 int fuzz_fix_crc = FUZZ_FIX_CRC;
 
+#define FUZZ_SIGN_T0 500000000000ULL /* signing timestamp of the first signed frame, 10 us units (~2016) */
+
+static const uint8_t FUZZ_KEY[32] = {0x61, 0x67, 0x6e, 0x61, 0x76, 0x2d, 0x66, 0x75, 0x7a, 0x7a, 0x2d, 0x6b, 0x65, 0x79, 0x01, 0x02,
+                                     0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0a, 0x0b, 0x0c, 0x0d, 0x0e, 0x0f, 0x10, 0x11, 0x12};
+
 static uint8_t s_buf[FUZZ_MAX_INPUT];
+/* signed mode: each frame may grow by a signature block (13 bytes), at most one frame per 12 input bytes */
+static uint8_t s_signed[FUZZ_MAX_INPUT + (FUZZ_MAX_INPUT / 12u + 1u) * MAVLINK_SIGNATURE_BLOCK_LEN];
 static uint8_t s_tx[8192];
 static mavlink_message_t s_out_msg;
 static mavlink_status_t s_out_status;
@@ -104,6 +118,47 @@ void fuzz_fix_frame_crcs(uint8_t *b, size_t n)
     }
 }
 
+size_t fuzz_sign_frames(const uint8_t *in, size_t n, uint8_t *out, size_t cap)
+{
+    mavlink_signing_t sign;
+    memset(&sign, 0, sizeof sign);
+    sign.flags = MAVLINK_SIGNING_FLAG_SIGN_OUTGOING;
+    sign.timestamp = FUZZ_SIGN_T0;
+    memcpy(sign.secret_key, FUZZ_KEY, sizeof FUZZ_KEY);
+    size_t i = 0;
+    size_t o = 0;
+    while (i < n) {
+        if (in[i] == MAVLINK_STX && i + MAVLINK_NUM_HEADER_BYTES <= n) {
+            uint8_t len = in[i + 1];
+            size_t sig = (in[i + 2] & MAVLINK_IFLAG_SIGNED) != 0u ? MAVLINK_SIGNATURE_BLOCK_LEN : 0u;
+            size_t total = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + sig;
+            size_t grown = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + MAVLINK_SIGNATURE_BLOCK_LEN;
+            if (i + total <= n && o + grown <= cap) {
+                uint8_t *h = &out[o];
+                memcpy(h, &in[i], MAVLINK_NUM_HEADER_BYTES + (size_t)len);
+                h[2] |= MAVLINK_IFLAG_SIGNED;
+                uint32_t msgid = (uint32_t)h[7] | ((uint32_t)h[8] << 8) | ((uint32_t)h[9] << 16);
+                uint8_t *payload = &h[MAVLINK_NUM_HEADER_BYTES];
+                uint16_t crc = frame_crc(&h[1], MAVLINK_CORE_HEADER_LEN, payload, len, msgid);
+                uint8_t *c = &payload[len];
+                c[0] = (uint8_t)(crc & 0xFFu);
+                c[1] = (uint8_t)(crc >> 8);
+                /* the input's own first signature byte (if it has one) picks the link id */
+                sign.link_id = sig != 0u ? in[i + MAVLINK_NUM_HEADER_BYTES + len + MAVLINK_NUM_CHECKSUM_BYTES] : 0u;
+                (void)mavlink_sign_packet(&sign, &c[2], h, MAVLINK_NUM_HEADER_BYTES, payload, len, c);
+                o += grown;
+                i += total;
+                continue;
+            }
+        }
+        if (o >= cap) {
+            break;
+        }
+        out[o++] = in[i++];
+    }
+    return o;
+}
+
 /* The firmware's output must parse as whole, valid frames. */
 static void check_output(void)
 {
@@ -136,13 +191,20 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (size > FUZZ_MAX_INPUT) {
         return -1; /* not added to the corpus */
     }
+    const uint8_t *in = s_buf;
     memcpy(s_buf, data, size);
-    if (fuzz_fix_crc) {
+    if (fuzz_fix_crc == 1) {
         fuzz_fix_frame_crcs(s_buf, size);
+    } else if (fuzz_fix_crc == 2) {
+        size = fuzz_sign_frames(data, size, s_signed, sizeof s_signed);
+        in = s_signed;
     }
 
     sil_reset();
     sil_set_stop_on_trigger(0);
+    if (fuzz_fix_crc == 2) {
+        signing_set_key(FUZZ_KEY, FUZZ_SIGN_T0);
+    }
     memset(&s_out_status, 0, sizeof s_out_status);
     check_output(); /* boot messages (STATUSTEXT about defaults) */
 
@@ -154,7 +216,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (chunk > size - i) {
             chunk = size - i;
         }
-        (void)sil_uart_write(&s_buf[i], (uint32_t)chunk);
+        (void)sil_uart_write(&in[i], (uint32_t)chunk);
         i += chunk;
         uint32_t step_ms = ((r >> 8) & 15u) == 0u ? 300u : 1u + ((r >> 12) % 3u);
         /* One main-loop pass per chunk (the tick is the whole step), except for the long pauses. */

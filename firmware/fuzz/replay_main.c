@@ -2,7 +2,7 @@
  * Replay driver: runs the fuzz target on saved inputs without libFuzzer, so the regression
  * inputs can be checked by gcc + ASan/UBSan builds on machines that never run the fuzzer.
  *
- *     fuzz_replay [--fix-crc] PATH...     (a PATH may be a file or a folder of inputs)
+ *     fuzz_replay [--fix-crc | --sign] PATH...     (a PATH may be a file or a folder of inputs)
  *
  * Prints one line per input (with the link's frame and error counters after it) and a summary;
  * exits 0 when every input ran to its end (a crash or sanitizer report ends the process with
@@ -35,9 +35,10 @@ static int replay_file(const char *path)
     fclose(f);
     int rc = LLVMFuzzerTestOneInput(buf, n);
     const link_state_t *ls = link_state(); /* what the firmware made of it, for the tests */
-    printf("replay: %s (%zu bytes)%s rx_frames=%u rx_errors=%u rx_unknown=%u\n", path, n,
-           rc != 0 ? " rejected (too long)" : "", (unsigned)ls->rx_frames, (unsigned)ls->rx_errors,
-           (unsigned)ls->rx_unknown);
+    printf("replay: %s (%zu bytes)%s rx_frames=%u rx_errors=%u rx_unknown=%u rx_unsigned=%u rx_bad_signature=%u"
+           " rx_replay=%u\n", path, n, rc != 0 ? " rejected (too long)" : "", (unsigned)ls->rx_frames,
+           (unsigned)ls->rx_errors, (unsigned)ls->rx_unknown, (unsigned)ls->rx_unsigned,
+           (unsigned)ls->rx_bad_signature, (unsigned)ls->rx_replay);
     s_runs++;
     return 0;
 }
@@ -91,10 +92,13 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--fix-crc") == 0) {
             fuzz_fix_crc = 1;
+        } else if (strcmp(argv[i], "--sign") == 0) {
+            fuzz_fix_crc = 2;
         } else {
             failed |= replay_path(argv[i]);
         }
     }
-    printf("replay: %u inputs, mode %s, %s\n", s_runs, fuzz_fix_crc ? "fix-crc" : "raw", failed ? "errors" : "ok");
+    static const char *const MODE_NAMES[] = {"raw", "fix-crc", "sign"};
+    printf("replay: %u inputs, mode %s, %s\n", s_runs, MODE_NAMES[fuzz_fix_crc], failed ? "errors" : "ok");
     return failed ? 2 : 0;
 }

@@ -3,7 +3,8 @@ native firmware (the fuzz target without libFuzzer, gcc + ASan + UBSan), so `mak
 the bugs the fuzzer found fixed on machines that never run clang or the fuzzer.
 
 regressions/raw/ inputs go to the link UART as they are; regressions/crc/ inputs first get their
-frame CRCs rewritten (the fuzzer's deep mode, where they were found).
+frame CRCs rewritten (the fuzzer's deep mode, where they were found). The signed mode (a key set,
+every MAVLink 2 frame signed by the harness) is checked on the same inputs.
 """
 
 from __future__ import annotations
@@ -17,12 +18,15 @@ from pathlib import Path
 
 import pytest
 
+from pymavlink.generator.mavcrc import x25crc
+
 from agnav_host.protocol import new_codec
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ_DIR = REPO / "firmware" / "fuzz"
 REGRESSIONS = FUZZ_DIR / "regressions"
-LINE = re.compile(r"^replay: (\S+) \((\d+) bytes\) rx_frames=(\d+) rx_errors=(\d+) rx_unknown=(\d+)$", re.M)
+LINE = re.compile(r"^replay: (\S+) \((\d+) bytes\) rx_frames=(\d+) rx_errors=(\d+) rx_unknown=(\d+)"
+                  r" rx_unsigned=(\d+) rx_bad_signature=(\d+) rx_replay=(\d+)$", re.M)
 
 
 def _fuzz_module():
@@ -48,12 +52,17 @@ def _counters(out: str) -> dict[str, tuple[int, int, int]]:
     return {Path(m[0]).name: (int(m[2]), int(m[3]), int(m[4])) for m in LINE.findall(out)}
 
 
-@pytest.mark.parametrize("mode", ["raw", "crc"])
-def test_every_regression_input_replays_without_a_sanitizer_report(replay: Path, mode: str) -> None:
+def _signing_counters(out: str) -> dict[str, tuple[int, int, int, int]]:
+    """name -> (frames accepted, unsigned refused, bad signature, replayed)."""
+    return {Path(m[0]).name: (int(m[2]), int(m[5]), int(m[6]), int(m[7])) for m in LINE.findall(out)}
+
+
+@pytest.mark.parametrize("mode,flags", [("raw", []), ("crc", ["--fix-crc"]), ("raw", ["--sign"]), ("crc", ["--sign"])])
+def test_every_regression_input_replays_without_a_sanitizer_report(replay: Path, mode: str, flags: list[str]) -> None:
     folder = REGRESSIONS / mode
     files = sorted(p.name for p in folder.iterdir() if p.is_file())
     assert files, f"no regression inputs in {folder}"
-    r = _run(replay, *(["--fix-crc"] if mode == "crc" else []), folder)
+    r = _run(replay, *flags, folder)
     report = (r.stdout + r.stderr)[-3000:]
     assert r.returncode == 0, f"replay of {folder} failed (exit {r.returncode}):\n{report}"
     assert "runtime error" not in r.stderr and "Sanitizer" not in r.stderr, report
@@ -83,3 +92,23 @@ def test_fix_crc_mode_repairs_a_frame_that_raw_mode_drops(replay: Path, tmp_path
 def test_replay_fails_on_a_missing_input(replay: Path, tmp_path: Path) -> None:
     r = _run(replay, tmp_path / "does_not_exist")
     assert r.returncode != 0
+
+
+def test_sign_mode_signs_every_mavlink2_frame_and_the_firmware_checks_them(replay: Path, tmp_path: Path) -> None:
+    # With a key set, a MAVLink 2 frame the harness signed reaches the handlers; a MAVLink 1 frame (it
+    # cannot be signed) is refused as unsigned; in raw mode (no key) both are accepted.
+    mav = new_codec(255, 190)
+    v2 = tmp_path / "v2_param_request_list"
+    v2.write_bytes(bytes(mav.param_request_list_encode(1, 1).pack(mav)))
+    v1 = tmp_path / "v1_heartbeat"
+    header = bytes([0xFE, 9, 0, 255, 190, 0])  # MAVLink 1: STX, len, seq, sys, comp, msgid 0 (HEARTBEAT)
+    payload = bytes([0, 0, 0, 0, 6, 8, 0, 0, 3])  # custom_mode, type GCS, autopilot INVALID, base_mode, status
+    crc = x25crc(header[1:] + payload)
+    crc.accumulate(bytes([50]))  # HEARTBEAT's crc_extra
+    v1.write_bytes(header + payload + crc.crc.to_bytes(2, "little"))
+    signed = _signing_counters(_run(replay, "--sign", v2, v1).stdout)
+    assert signed["v2_param_request_list"] == (1, 0, 0, 0), f"signed v2 frame: {signed['v2_param_request_list']}"
+    assert signed["v1_heartbeat"] == (0, 1, 0, 0), f"v1 frame with signing on: {signed['v1_heartbeat']}"
+    assert _signing_counters(_run(replay, v1).stdout)["v1_heartbeat"] == (1, 0, 0, 0), "raw mode (no key) takes v1"
+    plain = _signing_counters(_run(replay, v2).stdout)["v2_param_request_list"]
+    assert plain == (1, 0, 0, 0), f"raw mode (no key): {plain}"
