@@ -301,7 +301,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     return 0 if bad == 0 else 1
 
 
-COVERAGE_FILES = ["link.c", "link_calib.c", "main.c", "params.c", "calib.c"]
+COVERAGE_FILES = ["link.c", "link_calib.c", "main.c", "params.c", "calib.c", "signing.c"]
 
 
 def cmd_coverage(a: argparse.Namespace) -> int:
