@@ -199,6 +199,16 @@ static void task_sonar(void)
         return;
     }
     sonar_ring_step(hal_time_us());
+}
+
+/* A completed ring frame into the behaviour inputs and the health monitor. Its own row, after the
+ * control task: in a pass where a frame completes just as the control tick falls due, the tick runs
+ * first and the frame's work (up to ~270 us on the AVR) after it, instead of delaying the tick. */
+static void task_sonar_frame(void)
+{
+    if (s_ring == 0) {
+        return;
+    }
     /* Straight into the behaviour inputs: tasks run one at a time, so the control
      * task never sees a half-written frame. */
     if (sonar_ring_snapshot(&s_in.sonar)) {
@@ -391,7 +401,7 @@ static void send_encoder_status(uint32_t now_ms)
     send(&msg);
 }
 
-#define TASK_COUNT 5u
+#define TASK_COUNT 6u
 #define TASK_CONTROL 2u /* row of task_control in TASKS */
 static const sched_task_t TASKS[TASK_COUNT]; /* the table, defined below */
 static sched_stats_t s_stats[TASK_COUNT];
@@ -518,8 +528,9 @@ static void task_telemetry(void)
 /* The static scheduler table: {task, period ms, budget us, name}. */
 static const sched_task_t TASKS[TASK_COUNT] = {
     {task_link, 2u, 600u, "link"},
-    {task_sonar, 1u, 300u, "sonar"},
+    {task_sonar, 1u, 350u, "sonar"}, /* worst 320 us measured, interrupts included */
     {task_control, 20u, 1000u, "control"},
+    {task_sonar_frame, 1u, 300u, "sonframe"},
     {task_telemetry_50hz, 20u, 300u, "telem50"},
     {task_telemetry, 20u, 800u, "telem"},
 };
