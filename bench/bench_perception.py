@@ -588,6 +588,16 @@ def bench_proximity_step(n_scans: int = 700, timed_from: int = 400) -> float:
     return statistics.median(times[timed_from:])
 
 
+def _variants(parts: set[str], name: str) -> list[tuple[bool, str]]:
+    """(sil, where) for each of ``name`` (the simulator's runner, true pose) and ``name_sil`` asked for in parts."""
+    out = []
+    if name in parts:
+        out.append((False, "the simulator's runner"))
+    if name + "_sil" in parts:
+        out.append((True, "the SIL: native firmware, radio link, the firmware's odometry"))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="rows,proximity,proximity_sil,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
@@ -613,10 +623,7 @@ def main(argv: list[str] | None = None) -> int:
             clean = sum(bool(r[2]) for r in runs)
             print(f"| {m} | {mean:.4f} +- {sd:.4f} | {', '.join(f'{r[0]:.4f}' for r in runs)} | {clean}/{len(runs)} | {refs} | {better} |")
         sys.stdout.flush()
-    for part, sil, where in (("proximity", False, "the runner"), ("proximity_sil", True, "the SIL: native firmware, radio "
-                                                                          "link, the firmware's odometry")):
-        if part not in parts:
-            continue
+    for sil, where in _variants(parts, "proximity"):
         pr = bench_proximity(sil=sil)
         if not sil:
             prox_res = pr
@@ -664,10 +671,7 @@ def main(argv: list[str] | None = None) -> int:
         tot = sum(bool(r["detected"]) for r in hr)
         print(f"| all | | {tot}/{len(hr)} ({100.0 * tot / len(hr):.0f} %) | |")
         sys.stdout.flush()
-    for part, sil, where in (("ruts", False, "the runner, true pose"), ("ruts_sil", True, "the SIL: native firmware, "
-                                                                         "radio link, the firmware's odometry")):
-        if part not in parts:
-            continue
+    for sil, where in _variants(parts, "ruts"):
         res_r = bench_ruts(sil=sil)
         ruts_res = ruts_res or res_r
         print(f"\n## Rut following in closed loop: ruts.toml (two ruts 1.5 m apart along a curvy track), tilted laser; {where}")
@@ -678,10 +682,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {r['seed']} | {r['start_e']:+.3f} | {r['end']} | {r['x_end']:.1f} | {r['mean_abs']:.3f} | {r['sd']:.3f} "
                   f"| {r['max_abs']:.3f} |")
         sys.stdout.flush()
-    for part, sil, where in (("hole_field", False, "the runner, true pose"), ("hole_field_sil", True, "the SIL: native "
-                                                                                 "firmware, radio link, the firmware's odometry")):
-        if part not in parts:
-            continue
+    for sil, where in _variants(parts, "hole_field"):
         res_h = bench_hole_field(sil=sil)
         holes_res = holes_res or res_h
         print(f"\n## Holes in closed loop: hole_field.toml, goal seeking with and without GroundGuard (tilted laser); {where}")

@@ -33,6 +33,7 @@
  *      bytes between frames go through unchanged (and are refused as unsigned).
  * The same corpus and dictionary serve all modes.
  */
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -86,35 +87,44 @@ static uint16_t frame_crc(const uint8_t *hdr, uint16_t hdr_len, const uint8_t *p
     return crc;
 }
 
+/* Bytes of the whole MAVLink frame that starts at b[i] - a MAVLink 2 frame with its signature block
+ * when flagged, or a MAVLink 1 frame - the way the parser reads it; 0 when none starts there or it
+ * runs past n. */
+static size_t frame_at(const uint8_t *b, size_t i, size_t n)
+{
+    size_t total = 0u;
+    if (b[i] == MAVLINK_STX && i + MAVLINK_NUM_HEADER_BYTES <= n) {
+        size_t sig = (b[i + 2] & MAVLINK_IFLAG_SIGNED) != 0u ? MAVLINK_SIGNATURE_BLOCK_LEN : 0u;
+        total = MAVLINK_NUM_HEADER_BYTES + (size_t)b[i + 1] + MAVLINK_NUM_CHECKSUM_BYTES + sig;
+    } else if (b[i] == MAVLINK_STX_MAVLINK1 && i + 6u <= n) {
+        total = 6u + (size_t)b[i + 1] + MAVLINK_NUM_CHECKSUM_BYTES;
+    }
+    return i + total <= n ? total : 0u;
+}
+
 void fuzz_fix_frame_crcs(uint8_t *b, size_t n)
 {
     size_t i = 0;
     while (i < n) {
-        if (b[i] == MAVLINK_STX && i + MAVLINK_NUM_HEADER_BYTES <= n) {
-            uint8_t len = b[i + 1];
-            size_t sig = (b[i + 2] & MAVLINK_IFLAG_SIGNED) != 0u ? MAVLINK_SIGNATURE_BLOCK_LEN : 0u;
-            size_t total = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + sig;
-            if (i + total <= n) {
-                uint32_t msgid = (uint32_t)b[i + 7] | ((uint32_t)b[i + 8] << 8) | ((uint32_t)b[i + 9] << 16);
-                uint16_t crc =
-                    frame_crc(&b[i + 1], MAVLINK_CORE_HEADER_LEN, &b[i + MAVLINK_NUM_HEADER_BYTES], len, msgid);
-                b[i + MAVLINK_NUM_HEADER_BYTES + len] = (uint8_t)(crc & 0xFFu);
-                b[i + MAVLINK_NUM_HEADER_BYTES + len + 1u] = (uint8_t)(crc >> 8);
-                i += total;
-                continue;
-            }
-        } else if (b[i] == MAVLINK_STX_MAVLINK1 && i + 6u <= n) {
-            uint8_t len = b[i + 1];
-            size_t total = 6u + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES;
-            if (i + total <= n) {
-                uint16_t crc = frame_crc(&b[i + 1], 5u, &b[i + 6], len, b[i + 5]);
-                b[i + 6u + len] = (uint8_t)(crc & 0xFFu);
-                b[i + 6u + len + 1u] = (uint8_t)(crc >> 8);
-                i += total;
-                continue;
-            }
+        size_t total = frame_at(b, i, n);
+        if (total == 0u) {
+            i++;
+            continue;
         }
-        i++;
+        uint8_t len = b[i + 1];
+        uint16_t crc;
+        uint8_t *c;
+        if (b[i] == MAVLINK_STX) {
+            uint32_t msgid = (uint32_t)b[i + 7] | ((uint32_t)b[i + 8] << 8) | ((uint32_t)b[i + 9] << 16);
+            crc = frame_crc(&b[i + 1], MAVLINK_CORE_HEADER_LEN, &b[i + MAVLINK_NUM_HEADER_BYTES], len, msgid);
+            c = &b[i + MAVLINK_NUM_HEADER_BYTES + len];
+        } else {
+            crc = frame_crc(&b[i + 1], 5u, &b[i + 6], len, b[i + 5]);
+            c = &b[i + 6u + len];
+        }
+        c[0] = (uint8_t)(crc & 0xFFu);
+        c[1] = (uint8_t)(crc >> 8);
+        i += total;
     }
 }
 
@@ -128,28 +138,26 @@ size_t fuzz_sign_frames(const uint8_t *in, size_t n, uint8_t *out, size_t cap)
     size_t i = 0;
     size_t o = 0;
     while (i < n) {
-        if (in[i] == MAVLINK_STX && i + MAVLINK_NUM_HEADER_BYTES <= n) {
-            uint8_t len = in[i + 1];
-            size_t sig = (in[i + 2] & MAVLINK_IFLAG_SIGNED) != 0u ? MAVLINK_SIGNATURE_BLOCK_LEN : 0u;
-            size_t total = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + sig;
-            size_t grown = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + MAVLINK_SIGNATURE_BLOCK_LEN;
-            if (i + total <= n && o + grown <= cap) {
-                uint8_t *h = &out[o];
-                memcpy(h, &in[i], MAVLINK_NUM_HEADER_BYTES + (size_t)len);
-                h[2] |= MAVLINK_IFLAG_SIGNED;
-                uint32_t msgid = (uint32_t)h[7] | ((uint32_t)h[8] << 8) | ((uint32_t)h[9] << 16);
-                uint8_t *payload = &h[MAVLINK_NUM_HEADER_BYTES];
-                uint16_t crc = frame_crc(&h[1], MAVLINK_CORE_HEADER_LEN, payload, len, msgid);
-                uint8_t *c = &payload[len];
-                c[0] = (uint8_t)(crc & 0xFFu);
-                c[1] = (uint8_t)(crc >> 8);
-                /* the input's own first signature byte (if it has one) picks the link id */
-                sign.link_id = sig != 0u ? in[i + MAVLINK_NUM_HEADER_BYTES + len + MAVLINK_NUM_CHECKSUM_BYTES] : 0u;
-                (void)mavlink_sign_packet(&sign, &c[2], h, MAVLINK_NUM_HEADER_BYTES, payload, len, c);
-                o += grown;
-                i += total;
-                continue;
-            }
+        size_t total = frame_at(in, i, n);
+        uint8_t len = total != 0u ? in[i + 1] : 0u;
+        size_t grown = MAVLINK_NUM_HEADER_BYTES + (size_t)len + MAVLINK_NUM_CHECKSUM_BYTES + MAVLINK_SIGNATURE_BLOCK_LEN;
+        if (total != 0u && in[i] == MAVLINK_STX && o + grown <= cap) {
+            bool had_sig = (in[i + 2] & MAVLINK_IFLAG_SIGNED) != 0u;
+            uint8_t *h = &out[o];
+            memcpy(h, &in[i], MAVLINK_NUM_HEADER_BYTES + (size_t)len);
+            h[2] |= MAVLINK_IFLAG_SIGNED;
+            uint32_t msgid = (uint32_t)h[7] | ((uint32_t)h[8] << 8) | ((uint32_t)h[9] << 16);
+            uint8_t *payload = &h[MAVLINK_NUM_HEADER_BYTES];
+            uint16_t crc = frame_crc(&h[1], MAVLINK_CORE_HEADER_LEN, payload, len, msgid);
+            uint8_t *c = &payload[len];
+            c[0] = (uint8_t)(crc & 0xFFu);
+            c[1] = (uint8_t)(crc >> 8);
+            /* the input's own first signature byte (if it has one) picks the link id */
+            sign.link_id = had_sig ? in[i + MAVLINK_NUM_HEADER_BYTES + len + MAVLINK_NUM_CHECKSUM_BYTES] : 0u;
+            (void)mavlink_sign_packet(&sign, &c[2], h, MAVLINK_NUM_HEADER_BYTES, payload, len, c);
+            o += grown;
+            i += total;
+            continue;
         }
         if (o >= cap) {
             break;
