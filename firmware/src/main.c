@@ -491,6 +491,14 @@ static void task_telemetry(void)
     if (slot == 0u) {
         if ((round & 1u) == 0u && round < 8u) {
             send_telemetry_1hz();
+        } else if (round == 9u) {
+            /* once a second at rest (nothing commanded, wheels still): storage upkeep that would
+             * stall the loop while driving (hal.h) */
+            odom_pose_t pose;
+            odom_get(&pose);
+            if (s_out.speed_mm_s == 0 && pose.speed_mm_s == 0) {
+                hal_eeprom_idle();
+            }
         }
         return;
     }

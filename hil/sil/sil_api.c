@@ -319,6 +319,7 @@ int sil_param_save(void) { return (int)params_save(SIL_EEPROM_PARAMS_ADDR); }
 uint32_t sil_eeprom_size(void) { return hal_eeprom_size(); }
 void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len) { hal_eeprom_read((uint16_t)addr, dst, (uint16_t)len); }
 void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len) { hal_eeprom_write((uint16_t)addr, src, (uint16_t)len); }
+uint32_t sil_eeprom_idle_calls(void) { return sim_eeprom_idle_calls(); }
 
 /* ---- fault injection (sil_api.h) ------------------------------------------------------------- */
 int sil_fault_encoder(uint8_t idx, int mode)

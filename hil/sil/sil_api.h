@@ -110,6 +110,8 @@ int sil_param_save(void);
 uint32_t sil_eeprom_size(void);
 void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len);
 void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len);
+/* Native backend only: how often the firmware called hal_eeprom_idle() (the robot at rest) since reset. */
+uint32_t sil_eeprom_idle_calls(void);
 
 /* =====================================================================================
  * FAULT INJECTION (SIL API version 2): hooks for the fault table (`make faults`).

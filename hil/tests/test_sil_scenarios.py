@@ -206,3 +206,26 @@ def test_determinism_byte_identical_tlog():
     assert a.tlog == b.tlog, f"same seed, different tlogs ({len(a.tlog)} vs {len(b.tlog)} bytes)"
     assert (a.run.trajectory == b.run.trajectory).all()
     assert a.tlog != c.tlog, "different seeds gave identical tlogs"
+
+
+def test_storage_upkeep_only_at_rest():
+    """The firmware tells the HAL once a second that the robot is at rest (hal_eeprom_idle: the STM32
+    moves its flash EEPROM then, so an erase never stalls a moving robot): never while it drives to
+    the waypoint, about once a second after it has stopped there."""
+    s = session("open_field", PurePursuit())
+    try:
+        g = s.sc.goals[0]
+        s.run_for(1.5)
+        moving = s.fw.eeprom_idle_calls()
+        assert s.pose.x_m > 0.3, f"robot did not drive (x = {s.pose.x_m:.3f} m)"
+        s.run_for(20.0, until=lambda s: math.hypot(g.x_m - s.pose.x_m, g.y_m - s.pose.y_m) <= g.tolerance_m)
+        s.host_logic = None  # the host goes quiet: no more setpoints, the robot stops and stays
+        s.run_for(1.5)
+        before = s.fw.eeprom_idle_calls()
+        s.run_for(4.0)
+        at_rest = s.fw.eeprom_idle_calls() - before
+        print(f"idle calls: {moving} in the first 1.5 s of driving, {at_rest} in 4 s at rest")
+        assert moving == 0, f"{moving} idle calls while driving"
+        assert 3 <= at_rest <= 5, f"{at_rest} idle calls in 4 s at rest"
+    finally:
+        s.close()

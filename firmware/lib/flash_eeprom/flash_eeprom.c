@@ -160,3 +160,16 @@ bool fe_write(fe_t *fe, uint16_t addr, const void *src, uint16_t len)
     }
     return whole && fe->usable;
 }
+
+bool fe_compact_if_fuller_than(fe_t *fe, uint8_t percent)
+{
+    if (!fe->usable) {
+        return false;
+    }
+    uint32_t room = fe->flash->bank_bytes - records_start(fe);
+    uint32_t used = fe->next - records_start(fe);
+    if (used * 100u <= room * (uint32_t)percent) {
+        return false;
+    }
+    return fill_bank(fe, (uint8_t)(1u - fe->active), fe->generation + 1u);
+}

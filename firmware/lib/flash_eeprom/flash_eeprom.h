@@ -59,4 +59,9 @@ void fe_read(const fe_t *fe, uint16_t addr, void *dst, uint16_t len);
  * the flash failed (the mirror still holds the new values). */
 bool fe_write(fe_t *fe, uint16_t addr, const void *src, uint16_t len);
 
+/* Move the mirror to the other bank now if the active one's record area is more than percent full
+ * (true: moved). For a moment when the stall of an erase does no harm (the robot at rest), so that a
+ * full bank seldom forces a move while it drives. */
+bool fe_compact_if_fuller_than(fe_t *fe, uint8_t percent);
+
 #endif

@@ -91,6 +91,10 @@ void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse);
 uint16_t hal_eeprom_size(void);
 void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len);
 void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len);
+/* Called by the application about once a second while the robot is at rest (nothing commanded, wheels
+ * still): storage upkeep whose stall would matter while driving (the STM32 backend moves its flash
+ * EEPROM to the other sector when the active one is half full; others do nothing). */
+void hal_eeprom_idle(void);
 
 /* ---- watchdog and reset cause ----------------------------------------- */
 typedef enum {

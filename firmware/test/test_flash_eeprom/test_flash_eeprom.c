@@ -205,6 +205,27 @@ static void test_failed_program_keeps_the_value_in_ram_and_says_so(void)
     TEST_ASSERT_EQUAL_HEX8(0xFF, read1(5u)); /* it never reached the flash */
 }
 
+static void test_compaction_at_rest_only_past_the_threshold(void)
+{
+    uint8_t v = 0;
+    for (uint16_t k = 0; k < RECORDS / 2u; k++) { /* exactly half full: not yet */
+        v = (uint8_t)(k + 1u);
+        TEST_ASSERT_TRUE(fe_write(&s_fe, (uint16_t)(k % EE_SIZE), &v, 1u));
+    }
+    TEST_ASSERT_FALSE(fe_compact_if_fuller_than(&s_fe, 50u));
+    TEST_ASSERT_EQUAL_UINT32(1u, s_fe.generation);
+    v = 0xAB;
+    TEST_ASSERT_TRUE(fe_write(&s_fe, 40u, &v, 1u)); /* one more record: past half */
+    TEST_ASSERT_TRUE(fe_compact_if_fuller_than(&s_fe, 50u));
+    TEST_ASSERT_EQUAL_UINT32(2u, s_fe.generation);
+    TEST_ASSERT_EQUAL_UINT8(1u, s_fe.active);
+    TEST_ASSERT_EQUAL_UINT32(FE_HEADER_BYTES + EE_SIZE, s_fe.next); /* an empty record area */
+    TEST_ASSERT_FALSE(fe_compact_if_fuller_than(&s_fe, 50u));
+    power_on();
+    TEST_ASSERT_EQUAL_HEX8(0xAB, read1(40u));
+    TEST_ASSERT_EQUAL_HEX8((uint8_t)(RECORDS / 2u), read1((uint16_t)((RECORDS / 2u - 1u) % EE_SIZE)));
+}
+
 static void test_write_beyond_the_end_is_clipped_and_refused(void)
 {
     const uint8_t v[4] = {1, 2, 3, 4};
@@ -226,6 +247,7 @@ int main(void)
     RUN_TEST(test_full_bank_moves_to_the_other_and_survives_reboots);
     RUN_TEST(test_power_cut_at_any_operation_keeps_every_completed_write);
     RUN_TEST(test_failed_program_keeps_the_value_in_ram_and_says_so);
+    RUN_TEST(test_compaction_at_rest_only_past_the_threshold);
     RUN_TEST(test_write_beyond_the_end_is_clipped_and_refused);
     return UNITY_END();
 }

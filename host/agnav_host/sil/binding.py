@@ -97,6 +97,10 @@ SONAR_FAULTS = {"none": 0, "timeout": 1, "zero": 2}
 EEPROM_RECORDS = {"calib": 0, "params": 1, "signing": 2, "signing_ts": 3}
 RESET_CAUSES = {"power_on": 0, "watchdog": 1, "external": 2, "brown_out": 3}
 
+_NATIVE_SIGS: dict[str, tuple[object, list[object]]] = {
+    "sil_eeprom_idle_calls": (C.c_uint32, []),
+}
+
 _AVR_SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_avr_set_elf": (None, [C.c_char_p]),
     "sil_avr_param_count": (C.c_int, []),
@@ -147,11 +151,11 @@ class Firmware:
             f = getattr(self._lib, name)
             f.restype = res
             f.argtypes = args
+        for name, (res, args) in (_AVR_SIGS if backend == "avr" else _NATIVE_SIGS).items():
+            f = getattr(self._lib, name)
+            f.restype = res
+            f.argtypes = args
         if backend == "avr":
-            for name, (res, args) in _AVR_SIGS.items():
-                f = getattr(self._lib, name)
-                f.restype = res
-                f.argtypes = args
             self._lib.sil_avr_set_elf(str(self.elf).encode())
         self._buf = C.create_string_buffer(65536)
         self._trig_idx = (C.c_uint8 * 256)()
@@ -282,6 +286,12 @@ class Firmware:
         """Sonar idx: "timeout" (echo never rises), "zero" (a ~10 mm echo after every trigger) or "none"."""
         if self._lib.sil_fault_sonar(idx, SONAR_FAULTS[mode]) != 0:
             raise ValueError(f"sonar {idx}: bad index")
+
+    def eeprom_idle_calls(self) -> int:
+        """How often the firmware said the robot is at rest (hal_eeprom_idle) since reset; native backend only."""
+        if self.backend != "native":
+            raise NotImplementedError("eeprom_idle_calls: the AVR firmware's hal_eeprom_idle is not observable")
+        return int(self._lib.sil_eeprom_idle_calls())
 
     def eeprom_record(self, name: str) -> tuple[int, int]:
         """(address, length) of an EEPROM record: "calib", "params", "signing", "signing_ts"."""

@@ -323,6 +323,8 @@ void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
     eeprom_update_block(src, (void *)(uintptr_t)addr, len); /* writes only changed bytes */
 }
 
+void hal_eeprom_idle(void) {} /* byte-erasable EEPROM: nothing to tidy */
+
 /* ---- watchdog --------------------------------------------------------- */
 void hal_watchdog_start(uint16_t timeout_ms)
 {

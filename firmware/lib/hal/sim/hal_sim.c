@@ -32,6 +32,7 @@ static struct {
     sim_fifo_t tx[UART_PORTS];
     sim_fifo_t rx[UART_PORTS];
     uint8_t eeprom[SIM_EEPROM_SIZE];
+    uint32_t eeprom_idle_calls; /* hal_eeprom_idle(): the application said the robot is at rest */
     uint32_t wdt_kicks;
     uint16_t wdt_timeout_ms;
     bool irq_masked;
@@ -209,6 +210,9 @@ void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
 }
 
 uint8_t *sim_eeprom_bytes(void) { return sim.eeprom; }
+
+void hal_eeprom_idle(void) { sim.eeprom_idle_calls++; }
+uint32_t sim_eeprom_idle_calls(void) { return sim.eeprom_idle_calls; }
 
 void hal_watchdog_start(uint16_t timeout_ms) { sim.wdt_timeout_ms = timeout_ms; }
 void hal_watchdog_kick(void) { sim.wdt_kicks++; }

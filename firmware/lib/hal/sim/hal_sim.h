@@ -46,6 +46,7 @@ uint16_t sim_uart_take_tx(uint8_t port, uint8_t *dst, uint16_t max);
 uint16_t sim_uart_put_rx(uint8_t port, const uint8_t *src, uint16_t len);
 
 uint8_t *sim_eeprom_bytes(void);          /* direct access for corruption tests */
+uint32_t sim_eeprom_idle_calls(void);     /* hal_eeprom_idle() calls since sim_reset() */
 uint32_t sim_watchdog_kicks(void);
 uint16_t sim_watchdog_timeout_ms(void);
 bool sim_irq_masked(void);

@@ -637,6 +637,15 @@ void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
     (void)fe_write(&s_eeprom, addr, src, len);
 }
 
+/* At rest: move to the other sector once the active one is half full, so the erase's stall falls
+ * here and not while driving (a full sector while driving still moves, correctness first). */
+void hal_eeprom_idle(void)
+{
+    if (s_eeprom_ready) {
+        (void)fe_compact_if_fuller_than(&s_eeprom, 50u);
+    }
+}
+
 /* ---- watchdog and reset cause ------------------------------------------- */
 /* IWDG timeout = (4 << pr) * (rlr + 1) / LSI_HZ: the smallest prescaler whose 12-bit reload
  * reaches timeout_ms (finest resolution), saturating at /256 * 4096 = 32.8 s. The LSI is only
