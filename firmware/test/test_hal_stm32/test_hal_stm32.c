@@ -30,6 +30,7 @@
 #define hal_eeprom_size stm32_hal_eeprom_size
 #define hal_eeprom_read stm32_hal_eeprom_read
 #define hal_eeprom_write stm32_hal_eeprom_write
+#define hal_eeprom_idle stm32_hal_eeprom_idle
 #define hal_watchdog_start stm32_hal_watchdog_start
 #define hal_watchdog_kick stm32_hal_watchdog_kick
 #define hal_reset_cause stm32_hal_reset_cause
