@@ -19,6 +19,7 @@ def _cmd_planners(ns: argparse.Namespace) -> int:
 
     for name, summary in describe().items():
         print(f"{name:13s} {summary}")
+    print("perception controllers (agnav sim only: built from the scenario's field and [meta]):")
     for name, summary in FIELD_CONTROLLERS.items():
         print(f"{name:13s} {summary}")
     print(f"(any name{GUARD_SUFFIX}: the same with the tilted laser's holes and steps as obstacles; goal_seek = the "
