@@ -231,3 +231,38 @@ def test_follower_without_scan_creeps_straight():
     cmd = ctrl.step(Observation(0.0, Pose2D(), 0.0, 0.0, Goal(0, 0), None))
     assert cmd.speed_m_s > 0 and cmd.yaw_rate_rad_s == 0.0
     assert isinstance(LaserScan, type)
+
+
+@pytest.mark.parametrize("motion", ["pose", "velocity"])
+def test_proximity_row_map_follows_the_robot_by_its_pose_or_its_velocities(motion):
+    # The robot is pushed 1 m right of the curvy row's design line along x = 2..6 m; the observations carry
+    # either only the pose (speed and yaw rate zero: a source that reports no velocities) or only the
+    # velocities (the pose frozen). Each mode must keep its map moving with the robot from its own input.
+    sc = parse_scenario(_curvy_row_toml(0.0), "<curvy>")
+    assert sc.laser is not None
+    ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, row_half_width_m=0.145,
+                                                     mount=sc.laser.mount, map_motion=motion))
+    k = 2 * math.pi / 24.0
+    rate = 15.0
+    errs = []
+    prev = None
+    for i in range(int(4.0 / 0.5 * rate)):
+        x = 2.0 + i * 0.5 / rate
+        th = math.atan(1.5 * k * math.cos(k * x))
+        pose = Pose2D(x + math.sin(th), 1.5 * math.sin(k * x) - math.cos(th), th)
+        v, w = (0.0, 0.0) if prev is None else (math.hypot(pose.x_m - prev.x_m, pose.y_m - prev.y_m) * rate,
+                                                 (pose.yaw_rad - prev.yaw_rad) * rate)
+        prev = pose
+        obs_pose, obs_v, obs_w = (pose, 0.0, 0.0) if motion == "pose" else (Pose2D(), v, w)
+        scan = sc.laser.scan(sc.world, pose, i / rate, None)
+        ctrl.observe(Observation(i / rate, obs_pose, obs_v, obs_w, Goal(0, 0), scan))
+        d = ctrl.distance_estimate_m()
+        if i > 30 and d is not None:
+            errs.append(abs(d - 1.0))
+    assert ctrl._map.s == pytest.approx(4.1, rel=0.1)  # noqa: SLF001 - the travel it tracked (4 m of x on a bend)
+    assert max(errs) < 0.04, f"{motion}: distance estimate off by up to {max(errs):.3f} m"
+
+
+def test_proximity_map_motion_must_be_pose_or_velocity():
+    with pytest.raises(ValueError, match="map_motion"):
+        ProximityFollowerParams(map_motion="gps")

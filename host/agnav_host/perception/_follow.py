@@ -252,7 +252,11 @@ class ProximityFollowerParams:
     third-difference smoother on a 0.2 m grid whose cut-off wavelength is ``smooth_cutoff_m``: bends of the
     row longer than that pass (a 24 m wave loses 0.14 %), while the bushes' own scatter, a metre or two long, is
     averaged out better than a cubic over the same window does. ``curvature_filter_m`` is the travel over which
-    the curvature feed-forward is averaged."""
+    the curvature feed-forward is averaged. ``map_motion``: the map follows the robot through ``obs.pose`` (the
+    default: on the robot the firmware's odometry pose, integrated from the encoders at 50 Hz; it must not jump,
+    so not a pose corrected by landmarks) or by integrating ``obs.speed_m_s`` / ``obs.yaw_rate_rad_s`` at the
+    scan rate ("velocity": for a pose source that jumps; in the SIL it spread the distance by 1-3 cm more,
+    the firmware's velocities arriving late and coarse)."""
 
     side: str = "right"  # the row is on this side of the robot
     distance_m: float = 1.0
@@ -277,10 +281,13 @@ class ProximityFollowerParams:
     meas_std_rad: float = 0.03
     process_std_m: float = 0.01
     process_std_rad: float = 0.05
+    map_motion: str = "pose"  # how the row map follows the robot: "pose" (obs.pose) or "velocity" (speed, yaw rate)
 
     def __post_init__(self) -> None:
         if self.side not in ("left", "right"):
             raise ValueError(f"side must be 'left' or 'right', got {self.side!r}")
+        if self.map_motion not in ("pose", "velocity"):
+            raise ValueError(f"map_motion must be 'pose' or 'velocity', got {self.map_motion!r}")
         if not (self.distance_m > 0 and self.speed_m_s > 0):
             raise ValueError("ProximityFollowerParams: distance_m and speed_m_s must be > 0")
         if not (self.window_back_m >= 0 and self.window_ahead_m > 0 and self.bin_m > 0 and 1 <= self.fit_degree <= 3
@@ -289,8 +296,8 @@ class ProximityFollowerParams:
 
 
 class _RowFaceMap:
-    """The row's face over the last metres of travel, in an odometry frame (dead reckoning from the
-    robot's speed and yaw rate), and the curve fitted to it around the robot."""
+    """The row's face over the last metres of travel, in an odometry frame (the robot's pose, or dead
+    reckoning from its speed and yaw rate), and the curve fitted to it around the robot."""
 
     def __init__(self, p: ProximityFollowerParams) -> None:
         self.p = p
@@ -305,6 +312,14 @@ class _RowFaceMap:
         self._seen_s = np.zeros(0)
         self.coef: FloatArray | None = None  # y = sum coef[i] x^i in the robot frame at fit_pose
         self.fit_pose = np.zeros(3)
+
+    def moved_to(self, t: float, pose: Pose2D) -> None:
+        """Follow the robot by its pose (an odometry pose that does not jump)."""
+        p = np.array([pose.x_m, pose.y_m, pose.yaw_rad])
+        if self._t is not None:
+            self.s += math.hypot(p[0] - self.pose[0], p[1] - self.pose[1])
+        self.pose = p
+        self._t = t
 
     def odometry(self, t: float, v: float, w: float) -> None:
         if self._t is not None:
@@ -452,7 +467,10 @@ class ProximityFollower:
         """Odometry and filter to ``obs.t_s``, then fold in the scan's row estimate (returned); no steering."""
         p = self.params
         sgn = 1.0 if p.side == "left" else -1.0
-        self._map.odometry(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
+        if p.map_motion == "pose":
+            self._map.moved_to(obs.t_s, obs.pose)
+        else:
+            self._map.odometry(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
         self._kf.kappa = self._kappa
         self._kf.predict(obs.t_s, obs.speed_m_s, obs.yaw_rate_rad_s)
         if obs.scan is None:
