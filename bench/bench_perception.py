@@ -48,7 +48,7 @@ import sys
 import time
 import tomllib
 from dataclasses import replace
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -59,7 +59,6 @@ from agnav_host.perception import (
     ProximityFollowerParams,
     RowFollower,
     RowFollowerParams,
-    TiltedMount,
     detect_ground_obstacles,
     row_method_names,
 )
@@ -191,26 +190,32 @@ def _beside_row(x_m: float, side: str, distance_m: float) -> Pose2D:
     return Pose2D(x_m + sgn * math.sin(th) * distance_m, yr - sgn * math.cos(th) * distance_m, th)
 
 
+def _drive_beside_row(sc: Scenario, side: str, distance_m: float, n: int, rng: np.random.Generator,
+                      rate_hz: float = 15.0) -> Iterator[tuple[float, Observation]]:
+    """The robot pushed at 0.5 m/s along the path ``distance_m`` from the curvy row's design line (the row on its
+    ``side``), one laser scan every 1 / rate_hz s: (x, observation) for n scans, speed and yaw rate from the poses."""
+    assert sc.laser is not None
+    prev = _beside_row(0.0, side, distance_m)
+    for i in range(n):
+        x = i * (0.5 / rate_hz)  # as np.arange(0, ., 0.5 / rate_hz) lays the stations
+        pose = _beside_row(x, side, distance_m)
+        v = math.hypot(pose.x_m - prev.x_m, pose.y_m - prev.y_m) * rate_hz
+        w = norm_angle_rad(pose.yaw_rad - prev.yaw_rad) * rate_hz
+        prev = pose
+        yield x, Observation(i / rate_hz, pose, v, w, Goal(0.0, 0.0), sc.laser.scan(sc.world, pose, i / rate_hz, rng))
+
+
 def calibrate_half_width(sc: Scenario, params: ProximityFollowerParams, distance_m: float = 1.0,
                          x0_m: float = 2.0, x1_m: float = 22.0) -> float:
     """Field calibration of the crop's visible half-width with the follower's own estimator: the robot is pushed
     at 0.5 m/s along a line marked ``distance_m`` from the centre line of a calibration row (a string line, as one
     would lay with a tape measure) from the row start to ``x1_m``; half-width = distance_m - mean estimated distance
     of the visible face over ``x0_m``..``x1_m``. Only the follower's estimator runs (``observe``), it does not steer."""
-    assert sc.laser is not None
     ctrl = ProximityFollower(replace(params, row_half_width_m=0.0))
     ctrl.reset()
-    rng = np.random.default_rng(500)
-    rate = 15.0
-    xs = np.arange(0.0, x1_m, 0.5 / rate)  # about 0.5 m/s along x
     got = []
-    prev = _beside_row(xs[0], params.side, distance_m)
-    for i, x in enumerate(xs):
-        pose = _beside_row(float(x), params.side, distance_m)
-        v = math.hypot(pose.x_m - prev.x_m, pose.y_m - prev.y_m) * rate
-        w = norm_angle_rad(pose.yaw_rad - prev.yaw_rad) * rate
-        prev = pose
-        obs = Observation(i / rate, pose, v, w, Goal(0.0, 0.0), sc.laser.scan(sc.world, pose, i / rate, rng))
+    n = len(np.arange(0.0, x1_m, 0.5 / 15.0))  # scans from the row start to x1_m
+    for x, obs in _drive_beside_row(sc, params.side, distance_m, n, np.random.default_rng(500)):
         est = ctrl.observe(obs)
         if est is not None and x >= x0_m:
             got.append(abs(est.offset_m))
@@ -236,6 +241,12 @@ def planted_row_offset_m(s_query: np.ndarray, s_bush: np.ndarray, n_bush: np.nda
     return (near * n_bush[None, :]).sum(axis=1) / np.maximum(near.sum(axis=1), 1)
 
 
+def _design_offset_m(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Offset (m, + = left) of points from the curvy row's design line y = 1.5 sin(2 pi x / 24), across the row."""
+    k = 2 * math.pi / 24.0
+    return (y - 1.5 * np.sin(k * x)) * np.cos(np.arctan(1.5 * k * np.cos(k * x)))
+
+
 def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[float, ...] = (3.0, 6.0, 11.0)
                     ) -> list[dict[str, float]]:
     """How far the row's visible face itself strays from the plant line, per world: the face the robot sees
@@ -243,12 +254,11 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
     window of each length along the row, and the largest deviation of that running mean from the world's
     mean face is reported (m). A follower that knew the row's shape exactly and averaged the face uniformly
     over that length would still be off the plant line by this much, plus its own noise."""
-    k = 2 * math.pi / 24.0
     out = []
     for seed in seeds:
-        c = curvy_row_scenario(seed).world.circles
-        th = np.arctan(1.5 * k * np.cos(k * c[:, 0]))
-        off = (c[:, 1] - 1.5 * np.sin(k * c[:, 0])) * np.cos(th)  # + = left of the plant line
+        sc = curvy_row_scenario(seed)
+        c = sc.world.circles
+        off = _design_offset_m(c[:, 0], c[:, 1])
         st = np.arange(0.0, 48.0, 0.05)
         dx = np.abs(c[None, :, 0] - st[:, None])
         over = dx < c[None, :, 2]
@@ -264,9 +274,8 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
             m = (st > 2.0 + w / 2) & (st < 46.0 - w / 2)
             row[f"w{w:g}"] = float(np.max(np.abs(run[m] - mean)))
         # the bushes' centres themselves (mean of each bush's circles) against the design line, same windows
-        bc = bush_centres(curvy_row_scenario(seed))
-        bth = np.arctan(1.5 * k * np.cos(k * bc[:, 0]))
-        boff = (bc[:, 1] - 1.5 * np.sin(k * bc[:, 0])) * np.cos(bth)
+        bc = bush_centres(sc)
+        boff = _design_offset_m(bc[:, 0], bc[:, 1])
         for w in windows_m:
             centre_x = np.arange(2.0 + w / 2, 46.0 - w / 2, 0.05)
             near_b = np.abs(bc[None, :, 0] - centre_x[:, None]) <= w / 2
@@ -349,7 +358,7 @@ def bench_holes(seeds: tuple[int, ...] = (0, 1, 2)) -> list[dict[str, object]]:
     base = load_scenario("hole_field")
     assert base.tilted_laser is not None
     tl = base.tilted_laser
-    mount = TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
+    mount = tl.perception_mount()
     results = []
     for (lx, wy, dz) in HOLES_000:
         for approach_deg in (0.0, 30.0):
@@ -416,7 +425,7 @@ def bench_ruts(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> l
     out = []
     for seed in seeds:
         sc = replace(base, start=replace(base.start, y_m=base.start.y_m + 0.05 * seed))
-        ctrl = RutFollower(RutFollowerParams(tilted=TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)))
+        ctrl = RutFollower(RutFollowerParams(tilted=tl.perception_mount()))
         res = (run_sil_scenario(sc, "rut_follower", seed=seed, controller=ctrl).run if sil
                else run_scenario(sc, "rut_follower", seed=seed, controller=ctrl))
         tr = res.trajectory
@@ -445,7 +454,7 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False
     r = sc.robot_params.radius_m
     out = []
     for seed in seeds:
-        gp = GroundGuardParams(TiltedMount(tl.height_m, tl.tilt_rad, tl.mount))
+        gp = GroundGuardParams(tl.perception_mount())
         if sil:
             plain = run_sil_scenario(sc, "goal_seek", seed=seed).run
             guard = GroundGuard(make_standin("goal_seek", PlannerHost.planner_params(sc)), gp)
@@ -477,6 +486,12 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
 
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     written = []
+
+    def save(fig: object, name: str) -> None:
+        fig.tight_layout()  # type: ignore[attr-defined]
+        fig.savefig(f"{out_dir}/{name}", dpi=110)  # type: ignore[attr-defined]
+        plt.close(fig)
+        written.append(f"{out_dir}/{name}")
     if ruts:
         sc = load_scenario("ruts")
         rut = sc.world.ruts[0]
@@ -499,10 +514,7 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         ax.set_title("ruts: rut following with the tilted laser (grey: the ruts)")
         ax2.set_xlabel("x, m")
         ax2.set_ylabel("lateral error, cm")
-        fig.tight_layout()
-        fig.savefig(f"{out_dir}/ruts.png", dpi=110)
-        plt.close(fig)
-        written.append(f"{out_dir}/ruts.png")
+        save(fig, "ruts.png")
     if holes:
         sc = load_scenario("hole_field")
         fig, ax = plt.subplots(figsize=(9, 5))
@@ -517,10 +529,7 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         ax.set_aspect("equal")
         ax.legend(fontsize=6)
         ax.set_title("hole_field: goal seeking with GroundGuard (dark: holes; light: kerb)")
-        fig.tight_layout()
-        fig.savefig(f"{out_dir}/hole_field.png", dpi=110)
-        plt.close(fig)
-        written.append(f"{out_dir}/hole_field.png")
+        save(fig, "hole_field.png")
     if proximity:
         fig, axes = plt.subplots(len(proximity), 1, figsize=(10, 1.6 * len(proximity) + 0.8), sharex=True, squeeze=False)
         for ax, r in zip(axes[:, 0], proximity):
@@ -533,10 +542,7 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         axes[0, 0].legend(fontsize=7, ncol=2, loc="upper right")
         axes[0, 0].set_title("curvy_row: the robot's distance from the row (grey: 1 m +- 5 cm)")
         axes[-1, 0].set_xlabel("x, m")
-        fig.tight_layout()
-        fig.savefig(f"{out_dir}/proximity.png", dpi=110)
-        plt.close(fig)
-        written.append(f"{out_dir}/proximity.png")
+        save(fig, "proximity.png")
     return written
 
 
@@ -572,16 +578,8 @@ def bench_proximity_step(n_scans: int = 700, timed_from: int = 400) -> float:
     ctrl = ProximityFollower(ProximityFollowerParams(side="left", distance_m=1.0, speed_m_s=0.5, mount=sc.laser.mount,
                                                      row_half_width_m=0.141))
     ctrl.reset()
-    rng = np.random.default_rng(0)
-    rate = 15.0
-    prev = _beside_row(0.0, "left", 1.0)
     times = []
-    for i in range(n_scans):
-        pose = _beside_row(i * 0.5 / rate, "left", 1.0)
-        v = math.hypot(pose.x_m - prev.x_m, pose.y_m - prev.y_m) * rate
-        w = norm_angle_rad(pose.yaw_rad - prev.yaw_rad) * rate
-        prev = pose
-        obs = Observation(i / rate, pose, v, w, Goal(0.0, 0.0), sc.laser.scan(sc.world, pose, i / rate, rng))
+    for _, obs in _drive_beside_row(sc, "left", 1.0, n_scans, np.random.default_rng(0)):
         t0 = time.perf_counter()
         ctrl.step(obs)
         times.append(time.perf_counter() - t0)

@@ -20,7 +20,7 @@ from agnav_host.types import DriveCommand, Observation
 def _mount(sc) -> TiltedMount:
     tl = sc.tilted_laser
     assert tl is not None, f"{sc.name} has no [tilted_laser]"
-    return TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
+    return tl.perception_mount()
 
 
 def test_rut_follower_on_firmware_odometry_keeps_to_the_midline():

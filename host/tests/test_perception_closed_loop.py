@@ -27,7 +27,7 @@ from agnav_host.types import DriveCommand, LaserScan, Observation, Pose2D
 def _mount(sc: Scenario) -> TiltedMount:
     tl = sc.tilted_laser
     assert tl is not None
-    return TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
+    return tl.perception_mount()
 
 
 class _Recorder:
@@ -86,7 +86,7 @@ def test_virtual_posts_shorten_only_the_beams_that_meet_them():
 
 def test_min_hole_depth_keeps_shallow_ruts_out_of_the_holes():
     tl = TiltedLaser(laser_preset("lms200"), 0.8, math.radians(20.0), Pose2D(0.3, 0.0, 0.0))
-    tm = TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
+    tm = tl.perception_mount()
     rut = Rut(((-1.0, 0.5), (6.0, 0.5)), width_m=0.3, depth_m=0.12, count=1)  # along the path, 0.5 m to the left
     scan = tl.scan(World(ruts=[rut]), Pose2D(), 0.0, None)
     assert detect_ground_obstacles(scan, tm).hole.any()  # ref 000's range rule alone flags a 12 cm rut

@@ -79,7 +79,6 @@ static bool fill_bank(fe_t *fe, uint8_t b, uint32_t gen)
     fe->active = b;
     fe->generation = gen;
     fe->next = records_start(fe);
-    fe->records = 0u;
     return true;
 }
 
@@ -89,7 +88,6 @@ void fe_init(fe_t *fe, const fe_flash_t *flash, uint8_t *mirror, uint16_t size)
     fe->mirror = mirror;
     fe->size = size;
     fe->failures = 0u;
-    fe->records = 0u;
     fe->usable = records_start(fe) + 4u <= flash->bank_bytes;
     memset(mirror, 0xFF, size);
     if (!fe->usable) {
@@ -116,7 +114,6 @@ void fe_init(fe_t *fe, const fe_flash_t *flash, uint8_t *mirror, uint16_t size)
         next = off + 4u; /* after the last programmed word, torn or not */
         if (record_valid(fe, w)) {
             mirror[w & 0xFFFFu] = (uint8_t)(w >> 16);
-            fe->records++;
         }
     }
     fe->next = next;
@@ -155,7 +152,6 @@ bool fe_write(fe_t *fe, uint16_t addr, const void *src, uint16_t len)
         }
         if (program(fe, fe->active, fe->next, record_word((uint16_t)a, s[i]))) {
             fe->next += 4u;
-            fe->records++;
         }
     }
     return whole && fe->usable;

@@ -40,7 +40,6 @@ typedef struct {
     uint8_t active;      /* bank in use */
     uint32_t generation; /* of the active bank */
     uint32_t next;       /* offset of the next free record slot in the active bank */
-    uint16_t records;    /* valid records replayed at init or appended since */
     uint16_t failures;   /* erase / program / read-back failures since init */
     bool usable;         /* false: flash failed, the mirror alone holds the data until reset */
 } fe_t;

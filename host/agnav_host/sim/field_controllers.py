@@ -77,12 +77,9 @@ def _limits(sc: Scenario) -> "object":
 
 
 def _tilted_mount(sc: Scenario, name: str) -> "object":
-    from ..perception import TiltedMount
-
-    tl = sc.tilted_laser
-    if tl is None:
+    if sc.tilted_laser is None:
         raise FieldControllerError(f"{name!r} needs a [tilted_laser] in the scenario; {sc.name!r} has none")
-    return TiltedMount(tl.height_m, tl.tilt_rad, tl.mount)
+    return sc.tilted_laser.perception_mount()
 
 
 def _meta_num(sc: Scenario, key: str, default: float, lo: float) -> float:

@@ -10,9 +10,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ..types import EncoderEdges, FloatArray, LaserScan, Pose2D, SonarFrame
 from ._raycast import cast_rays, cast_rays_at
 from .world import World
+
+if TYPE_CHECKING:
+    from ..perception import TiltedMount
 
 __all__ = [
     "LaserSpec",
@@ -156,6 +161,12 @@ class TiltedLaser:
     def __post_init__(self) -> None:
         if not (self.height_m > 0 and 0 < self.tilt_rad < math.pi / 2):
             raise ValueError("TiltedLaser needs height_m > 0 and 0 < tilt_rad < 90 deg")
+
+    def perception_mount(self) -> "TiltedMount":
+        """This laser's pose as perception sees it (height, pitch down, pose on the robot)."""
+        from ..perception import TiltedMount
+
+        return TiltedMount(self.height_m, self.tilt_rad, self.mount)
 
     def exact_ranges(self, world: World, robot_pose: Pose2D, t_s: float = 0.0) -> FloatArray:
         s = self.spec

@@ -213,7 +213,6 @@ static void gpio_clocks_on(void)
 static volatile uint8_t s_rx[UART_RX_SIZE];
 static volatile uint16_t s_rx_head; /* written by the vector */
 static volatile uint16_t s_rx_tail; /* written by the loop */
-static volatile uint16_t s_rx_overruns; /* bytes lost: ring full or the USART's own overrun */
 static volatile uint8_t s_tx[UART_TX_SIZE];
 static volatile uint16_t s_tx_head; /* written by the loop */
 static volatile uint16_t s_tx_tail; /* written by the vector (or the loop with the vector masked) */
@@ -224,12 +223,7 @@ void USART1_IRQHandler(void)
     if ((sr & (USART_SR_RXNE | USART_SR_ORE)) != 0u) {
         uint8_t b = (uint8_t)USART1_DR; /* clears RXNE (and ORE after the SR read) */
         uint16_t next = (uint16_t)((s_rx_head + 1u) & (UART_RX_SIZE - 1u));
-        if ((sr & USART_SR_ORE) != 0u) {
-            s_rx_overruns++;
-        }
-        if (next == s_rx_tail) {
-            s_rx_overruns++;
-        } else if ((sr & USART_SR_RXNE) != 0u) {
+        if (next != s_rx_tail && (sr & USART_SR_RXNE) != 0u) { /* a full ring drops the byte */
             s_rx[s_rx_head] = b;
             s_rx_head = next;
         }
@@ -256,7 +250,6 @@ void hal_uart_init(uint8_t port, uint32_t baud)
     (void)RCC_APB2ENR;
     s_rx_head = s_rx_tail = 0u;
     s_tx_head = s_tx_tail = 0u;
-    s_rx_overruns = 0u;
     USART1_BRR = APB2_HZ / baud; /* 16x oversampling: mantissa.fraction in one divide */
     USART1_CR1 = (1u << 13) | (1u << 3) | (1u << 2) | USART_CR1_RXNEIE; /* UE, TE, RE, RXNEIE */
     NVIC_ISER(IRQ_USART1 >> 5) = 1u << (IRQ_USART1 & 31u);
