@@ -25,9 +25,7 @@ static struct {
     uint64_t ev_seq;
     uint32_t ev_n;
     uint32_t late;
-    uint32_t trig_head, trig_n;
-    uint8_t trig_idx[SIL_TRIGGER_MAX];
-    uint64_t trig_t[SIL_TRIGGER_MAX];
+    sil_trigger_queue_t trig;
     uint32_t trig_new; /* triggers since the current loop pass began */
     /* fault injection (sil_api.h) */
     uint8_t enc_fault[HAL_ENCODER_MAX];
@@ -54,12 +52,7 @@ static sil_event_t ev_pop(void) { return sil_ev_pop(s_heap, &S.ev_n); }
 static void on_trigger(uint8_t idx, uint32_t t_us)
 {
     (void)t_us; /* same as S.now_us's low bits; keep the 64-bit time */
-    if (S.trig_n < SIL_TRIGGER_MAX) {
-        uint32_t k = (S.trig_head + S.trig_n) % SIL_TRIGGER_MAX;
-        S.trig_idx[k] = idx;
-        S.trig_t[k] = S.now_us;
-        S.trig_n++;
-    }
+    (void)sil_trig_push(&S.trig, idx, S.now_us);
     S.trig_new++;
     if (idx < HAL_SONAR_MAX && S.sonar_fault[idx] == SIL_SONAR_ZERO) {
         uint64_t rise = S.now_us + SIL_SONAR_ZERO_DELAY_US;
@@ -260,18 +253,7 @@ uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_
 
 int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(SIL_EV_ECHO, idx, level != 0u, t_us); }
 
-uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
-{
-    uint32_t k = 0u;
-    while (k < max && S.trig_n > 0u) {
-        idx[k] = S.trig_idx[S.trig_head];
-        t_us[k] = S.trig_t[S.trig_head];
-        S.trig_head = (S.trig_head + 1u) % SIL_TRIGGER_MAX;
-        S.trig_n--;
-        k++;
-    }
-    return k;
-}
+uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max) { return sil_trig_take(&S.trig, idx, t_us, max); }
 
 uint32_t sil_sonar_trigger_count(uint8_t idx) { return sim_sonar_trigger_count(idx); }
 void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_deliver(idx, level, 0); }

@@ -1,12 +1,15 @@
 /*
  * The SIL's timed event queue (encoder edges, echo edges), shared by the native SIL
  * (hil/sil/sil_api.c) and the simavr one (hil/simavr/avr_sil.c): a binary min-heap on
- * (t_us, seq), so events at the same microsecond keep their queueing order.
+ * (t_us, seq), so events at the same microsecond keep their queueing order. Also the queue
+ * of sonar triggers the firmware fired, which both backends hand to the host the same way.
  */
 #ifndef AGNAV_SIL_EVENTS_H
 #define AGNAV_SIL_EVENTS_H
 
 #include <stdint.h>
+
+#include "sil_api.h" /* SIL_TRIGGER_MAX */
 
 /* What an event is: an encoder's A/B levels, an echo line's level, or an echo the SIL made up for
  * a sonar told to read zero (SIL_SONAR_ZERO). */
@@ -83,6 +86,40 @@ static inline sil_event_t sil_ev_pop(sil_event_t *heap, uint32_t *n)
     }
     heap[i] = last;
     return top;
+}
+
+/* Sonar triggers fired and not yet taken by the host (sil_take_triggers), oldest first. */
+typedef struct {
+    uint32_t head, n;
+    uint8_t idx[SIL_TRIGGER_MAX];
+    uint64_t t_us[SIL_TRIGGER_MAX];
+} sil_trigger_queue_t;
+
+/* Record a trigger of sonar idx at t_us; returns 0 (and keeps the older ones) when the queue is full. */
+static inline int sil_trig_push(sil_trigger_queue_t *q, uint8_t idx, uint64_t t_us)
+{
+    if (q->n >= SIL_TRIGGER_MAX) {
+        return 0;
+    }
+    uint32_t k = (q->head + q->n) % SIL_TRIGGER_MAX;
+    q->idx[k] = idx;
+    q->t_us[k] = t_us;
+    q->n++;
+    return 1;
+}
+
+/* Take up to max triggers, oldest first; returns how many. */
+static inline uint32_t sil_trig_take(sil_trigger_queue_t *q, uint8_t *idx, uint64_t *t_us, uint32_t max)
+{
+    uint32_t k = 0u;
+    while (k < max && q->n > 0u) {
+        idx[k] = q->idx[q->head];
+        t_us[k] = q->t_us[q->head];
+        q->head = (q->head + 1u) % SIL_TRIGGER_MAX;
+        q->n--;
+        k++;
+    }
+    return k;
 }
 
 #endif

@@ -115,9 +115,8 @@ static struct {
     uint32_t tick_us;
     uint64_t ev_seq;
     uint32_t ev_n, late;
-    uint32_t trig_head, trig_n, trig_new;
-    uint8_t trig_idx[SIL_TRIGGER_MAX];
-    uint64_t trig_t[SIL_TRIGGER_MAX];
+    sil_trigger_queue_t trig;
+    uint32_t trig_new;
     uint32_t trig_count[12];
     uint64_t limit_cycle;    /* run to this cycle (target or next event) */
     uint64_t run_until;      /* min(limit, trigger settle deadline) */
@@ -372,12 +371,7 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
     if (value != 0 || irq->value == 0) {
         return; /* the falling edge ends the trigger pulse */
     }
-    if (S.trig_n < SIL_TRIGGER_MAX) {
-        uint32_t k = (S.trig_head + S.trig_n) % SIL_TRIGGER_MAX;
-        S.trig_idx[k] = (uint8_t)idx;
-        S.trig_t[k] = now_cycle() / CYC_PER_US;
-        S.trig_n++;
-    }
+    (void)sil_trig_push(&S.trig, (uint8_t)idx, now_cycle() / CYC_PER_US);
     S.trig_count[idx]++;
     S.trig_new++;
     if (S.sonar_fault[idx] == SIL_SONAR_ZERO) {
@@ -690,18 +684,7 @@ uint32_t sil_queue_encoder_edges(uint8_t idx, const uint64_t *t_us, const uint8_
 
 int sil_queue_echo(uint8_t idx, uint64_t t_us, uint8_t level) { return ev_push(SIL_EV_ECHO, idx, level != 0u, t_us); }
 
-uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max)
-{
-    uint32_t k = 0u;
-    while (k < max && S.trig_n > 0u) {
-        idx[k] = S.trig_idx[S.trig_head];
-        t_us[k] = S.trig_t[S.trig_head];
-        S.trig_head = (S.trig_head + 1u) % SIL_TRIGGER_MAX;
-        S.trig_n--;
-        k++;
-    }
-    return k;
-}
+uint32_t sil_take_triggers(uint8_t *idx, uint64_t *t_us, uint32_t max) { return sil_trig_take(&S.trig, idx, t_us, max); }
 
 uint32_t sil_sonar_trigger_count(uint8_t idx) { return idx < 12u ? S.trig_count[idx] : 0u; }
 void sil_sonar_echo_edge(uint8_t idx, uint8_t level) { echo_deliver(idx, level, 0); }
