@@ -5,9 +5,15 @@ Add a subcommand with the :func:`subcommand` decorator::
     @subcommand("name", help="one line", args=[(("--flag",), {"type": int})])
     def _cmd_name(ns: argparse.Namespace) -> int: ...
 
-Options that take numbers which may be negative (``--goal -3,5,90``) are listed in
-``NEGATIVE_VALUE_OPTIONS``; :func:`main` joins them with their value (``--goal=-3,5,90``) before
-argparse sees the value, which it would otherwise take for an option.
+Any option that takes a value may be given a negative number after a space (``--goal -3,5,90``,
+``--start-speed -1e-3``): :func:`main` joins such an option with a value that reads as a number or a
+comma-separated list of numbers (``--goal=-3,5,90``) before argparse sees it, since argparse would
+otherwise take the value for an option. ``NEGATIVE_VALUE_OPTIONS`` collects the options a subcommand
+declares with ``negative_ok``; they are joined whatever their value looks like as long as it is
+numeric (kept for callers that list them).
+
+Number options use the checked types below (:func:`finite_float`, :func:`positive_float`, ...) so that
+``nan``, ``inf`` or a negative count is refused by argparse with the option's name, not deep in a run.
 """
 
 from __future__ import annotations
@@ -19,7 +25,8 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "NEGATIVE_VALUE_OPTIONS", "build_parser"]
+__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "NEGATIVE_VALUE_OPTIONS", "build_parser",
+           "finite_float", "positive_float", "nonneg_float", "positive_int", "nonneg_int", "int_in"]
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -34,7 +41,61 @@ class _Sub:
 
 SUBCOMMANDS: dict[str, _Sub] = {}
 NEGATIVE_VALUE_OPTIONS: set[str] = set()
-_NUMLIST = re.compile(r"^-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)*$")
+_UNSIGNED = r"((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan)"
+# a negative number, or a comma-separated list of numbers starting with one: "-3,5,90", "-1e-3", "-inf"
+_NUMLIST = re.compile(rf"^-{_UNSIGNED}(,[-+]?{_UNSIGNED})*$", re.IGNORECASE)
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (``nan`` and ``inf`` refused)."""
+    v = _number(text)
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return v
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    v = finite_float(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return v
+
+
+def nonneg_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    v = finite_float(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return v
+
+
+def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
+    """argparse type: a whole number in [lo, hi] (either end open when None)."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text, 0)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            span = f"{lo}..{hi}" if lo is not None and hi is not None else (f">= {lo}" if lo is not None else f"<= {hi}")
+            raise argparse.ArgumentTypeError(f"must be {span}, got {text!r}")
+        return v
+
+    parse.__name__ = "int"
+    return parse
+
+
+positive_int = int_in(1)
+nonneg_int = int_in(0)
 
 
 def subcommand(name: str, help: str, args: Sequence[tuple[tuple[str, ...], dict[str, Any]]] = (),
@@ -65,12 +126,25 @@ def parse_goal(text: str) -> tuple[float, float, float | None]:
     return vals[0], vals[1], vals[2] if len(vals) == 3 else None
 
 
-def _join_negative_values(argv: list[str]) -> list[str]:
+def _value_options(parser: argparse.ArgumentParser) -> dict[str, set[str]]:
+    """For each subcommand, its options that take a value (not flags)."""
+    out: dict[str, set[str]] = {}
+    for act in parser._actions:
+        if isinstance(act, argparse._SubParsersAction):
+            for name, sp in act.choices.items():
+                out[name] = {o for a in sp._actions if a.option_strings and a.nargs != 0 for o in a.option_strings}
+    return out
+
+
+def _join_negative_values(argv: list[str], value_options: dict[str, set[str]] | None = None) -> list[str]:
+    """Join an option that takes a value with a following negative number (list): ``--x -1`` -> ``--x=-1``."""
+    sub = next((a for a in argv if not a.startswith("-")), None)
+    takes_value = NEGATIVE_VALUE_OPTIONS | ((value_options or {}).get(sub or "", set()))
     out: list[str] = []
     i = 0
     while i < len(argv):
         a = argv[i]
-        if a in NEGATIVE_VALUE_OPTIONS and i + 1 < len(argv) and _NUMLIST.match(argv[i + 1]):
+        if a in takes_value and i + 1 < len(argv) and _NUMLIST.match(argv[i + 1]):
             out.append(f"{a}={argv[i + 1]}")
             i += 2
             continue
@@ -121,9 +195,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agnav`` console script; returns the exit code."""
-    _load_command_modules()  # first: their negative-number options must be known to the joiner
-    args = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
-    ns = build_parser().parse_args(args)
+    parser = build_parser()  # first: every subcommand's options must be known to the joiner
+    args = _join_negative_values(list(sys.argv[1:] if argv is None else argv), _value_options(parser))
+    ns = parser.parse_args(args)
     handler: Handler = ns._handler
     return handler(ns)
 
