@@ -204,3 +204,20 @@ def test_tcp_server_serves_a_ground_station():
     assert {"HEARTBEAT", "AGNAV_BEHAVIOUR_STATUS", "AGNAV_ODOMETRY"} <= kinds, kinds
     pv = [m for m in msgs if m.get_type() == "PARAM_VALUE"]
     assert pv and pv[0].param_id == "DRIVE_KIND" and pv[0].param_value == 1.0, pv
+
+
+def test_tcp_server_on_a_busy_port_says_so():
+    """A second `agnav sil` on the same port: the address, the reason and what to do, no traceback."""
+    import socket
+
+    from agnav_host.sil.server import ServeOptions, serve
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        with pytest.raises(OSError) as e:
+            serve(load_scenario("corridor_obstacles"), ServeOptions(tcp=("127.0.0.1", port), duration_s=1.0),
+                  log=lambda m: None)
+    assert f"cannot listen on tcp:127.0.0.1:{port}: Address already in use" in e.value.strerror
+    assert "pick another --tcp port" in e.value.strerror

@@ -227,8 +227,9 @@ def _planner_names() -> list[str]:
     args=[
         (("scenario",), {"nargs": "?", "default": None, "help": "built-in name or .toml path (default: the default scenario)"}),
         (("--planner",), {"default": "him", "help": "planner by name (default him; see agnav planners; goal_seek = the stand-in)"}),
-        (("--seed",), {"type": int, "default": 0, "help": "random seed (default 0)"}),
-        (("--duration",), {"type": float, "default": None, "help": "simulated seconds (default: the scenario's)"}),
+        (("--seed",), {"type": nonneg_int, "default": 0, "help": "random seed, a whole number >= 0 (default 0)"}),
+        (("--duration",), {"type": positive_float, "default": None,
+                           "help": "simulated seconds, > 0 (default: the scenario's duration_s)"}),
         (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,HDG_DEG]",
                        "help": "replace the scenario's goals by one goal (m, m, deg); negatives allowed"}),
         (("--out",), {"required": True, "help": "output directory"}),
@@ -267,6 +268,10 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         except ValueError as e:
             print(f"agnav sim: {e}", file=sys.stderr)
             return 2
+    bad_out = _unusable_out_dir(ns.out)
+    if bad_out:
+        print(f"agnav sim: --out {ns.out}: {bad_out}", file=sys.stderr)
+        return 2
     goal = None
     if ns.goal is not None:
         x, y, hdg = ns.goal
@@ -305,6 +310,21 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _unusable_out_dir(out: str) -> str | None:
+    """Why ``out`` cannot be the output folder (a file, or a folder that cannot be made), or None; made here,
+    before a long run, so that the run is not lost to a typo."""
+    from pathlib import Path
+
+    p = Path(out)
+    if p.exists() and not p.is_dir():
+        return "is a file, not a folder"
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"cannot create the folder: {e.strerror or e}"
+    return None
 
 
 def _report_write_failure(cmd: str, out: str, err: BaseException) -> int:

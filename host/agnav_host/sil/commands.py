@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..cli import subcommand
+from ..cli import nonneg_int, positive_float, subcommand
 
 
 def _param(text: str) -> tuple[str, int]:
@@ -27,9 +27,11 @@ def _param(text: str) -> tuple[str, int]:
         (("--tcp",), {"default": "tcp:127.0.0.1:5760", "metavar": "HOST:PORT",
                       "help": "loopback endpoint to listen on (default tcp:127.0.0.1:5760); 'none' to disable"}),
         (("--pty",), {"action": "store_true", "help": "also serve on a pseudo-terminal (its path is printed)"}),
-        (("--speedup",), {"type": float, "default": 1.0, "help": "simulated seconds per wall-clock second (default 1)"}),
-        (("--duration",), {"type": float, "default": None, "help": "stop after this many simulated seconds"}),
-        (("--seed",), {"type": int, "default": 0, "help": "random seed (default 0)"}),
+        (("--speedup",), {"type": positive_float, "default": 1.0,
+                          "help": "simulated seconds per wall-clock second, > 0 (default 1)"}),
+        (("--duration",), {"type": positive_float, "default": None,
+                           "help": "stop after this many simulated seconds, > 0 (default: until Ctrl-C)"}),
+        (("--seed",), {"type": nonneg_int, "default": 0, "help": "random seed, a whole number >= 0 (default 0)"}),
         (("--param",), {"type": _param, "action": "append", "default": [], "metavar": "NAME=VALUE",
                         "help": "firmware parameter stored in EEPROM before boot (repeatable), e.g. LINK_TIMEOUT_MS=2000"}),
         (("--tlog",), {"default": None, "help": "write the radio traffic (both ways) to this .tlog"}),
@@ -62,7 +64,7 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
         s = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
                                    tlog_path=ns.tlog, config=cfg))
     except (SilBuildError, ValueError, OSError) as e:
-        print(f"agnav sil: {e}", file=sys.stderr)
+        print(f"agnav sil: {getattr(e, 'strerror', None) or e}", file=sys.stderr)
         return 1
     print(f"agnav sil: stopped at t = {s.t_s:.1f} s, robot at ({s.pose.x_m:.2f}, {s.pose.y_m:.2f})")
     return 0

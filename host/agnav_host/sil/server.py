@@ -14,6 +14,7 @@ station's heartbeat rate (MAVProxy: ``set heartbeat 4``) or store a longer timeo
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import os
 import select
@@ -72,7 +73,13 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
     if opt.tcp is not None:
         lsock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         lsock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        lsock.bind(opt.tcp)
+        try:
+            lsock.bind(opt.tcp)
+        except OSError as e:
+            lsock.close()
+            raise OSError(e.errno, f"cannot listen on tcp:{opt.tcp[0]}:{opt.tcp[1]}: {e.strerror}"
+                          + (" (another agnav sil or ground station is using it; pick another --tcp port)"
+                             if e.errno == errno.EADDRINUSE else "")) from None
         lsock.listen(1)
         lsock.setblocking(False)
         bound = lsock.getsockname()

@@ -50,7 +50,7 @@ class ScenarioError(ValueError):
         self.message = message
         self.source = source
         where = f"{source}:{line}" if line is not None else source
-        super().__init__(f"{where}: {field}: {message}")
+        super().__init__(f"{where}: {field}: {message}" if field else f"{where}: {message}")
 
 
 def _fmt_path(path: Path_) -> str:
@@ -539,6 +539,7 @@ def load_scenario(name_or_path: str | Path | None = None) -> Scenario:
         try:
             text = p.read_text(encoding="utf-8")
         except OSError as e:
-            raise ScenarioError("<file>", None, f"cannot read scenario file: {e.strerror}", str(p)) from None
+            raise ScenarioError("", None, f"cannot read scenario file: {e.strerror}", str(p)) from None
         return parse_scenario(text, str(p))
-    raise ScenarioError("<name>", None, f"unknown scenario {s!r}; built-ins: {', '.join(builtin_names())}", s)
+    raise ScenarioError("", None, f"unknown scenario {s!r} (neither a built-in name nor a .toml file); built-ins: "
+                        f"{', '.join(builtin_names())}", s)
