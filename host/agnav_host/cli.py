@@ -37,6 +37,7 @@ class _Sub:
     help: str
     handler: Handler
     args: tuple[tuple[tuple[str, ...], dict[str, Any]], ...]
+    epilog: str = ""
 
 
 SUBCOMMANDS: dict[str, _Sub] = {}
@@ -99,13 +100,15 @@ nonneg_int = int_in(0)
 
 
 def subcommand(name: str, help: str, args: Sequence[tuple[tuple[str, ...], dict[str, Any]]] = (),
-               negative_ok: Sequence[str] = ()) -> Callable[[Handler], Handler]:
-    """Register ``fn`` as ``agnav <name>``; ``negative_ok`` names options whose values may start with '-'."""
+               negative_ok: Sequence[str] = (), epilog: str = "") -> Callable[[Handler], Handler]:
+    """Register ``fn`` as ``agnav <name>``; ``negative_ok`` names options whose values may start with '-'
+    (any value-taking option already may: kept for callers); ``epilog`` ends ``agnav <name> --help``
+    (exit codes, units)."""
 
     def deco(fn: Handler) -> Handler:
         if name in SUBCOMMANDS:
             raise ValueError(f"subcommand {name!r} registered twice")
-        SUBCOMMANDS[name] = _Sub(name, help, fn, tuple(args))
+        SUBCOMMANDS[name] = _Sub(name, help, fn, tuple(args), epilog)
         NEGATIVE_VALUE_OPTIONS.update(negative_ok)
         return fn
 
@@ -186,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for s in SUBCOMMANDS.values():
-        sp = sub.add_parser(s.name, help=s.help, description=s.help)
+        sp = sub.add_parser(s.name, help=s.help, description=s.help, epilog=s.epilog or None)
         for flags, kw in s.args:
             sp.add_argument(*flags, **kw)
         sp.set_defaults(_handler=s.handler)

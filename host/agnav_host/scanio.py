@@ -8,10 +8,12 @@ Format::
     -2.356194,1.234000
     ...
 
-Angles are in the sensor frame (0 = forward, CCW positive) and must be evenly spaced and ascending;
-a range of NaN, inf or 0 means no return (``nan``/``inf`` are written as such). The pose line gives
-the sensor pose in the world frame and is optional (its keys may appear in any order; all four pose
-keys or none). Other comment lines are ignored.
+Angles are in the sensor frame (0 = forward, CCW positive), in radians within [-2 pi, 2 pi] and
+spanning at most 2 pi (a file in degrees is refused), and must be evenly spaced and ascending;
+a range of NaN, inf or 0 means no return (``nan``/``inf`` are written as such). ``range_max_m`` (and
+``range_min_m``, if given) must be > 0 with ``range_min_m < range_max_m``. A UTF-8 byte-order mark
+(files saved by Excel) is accepted. The pose line gives the sensor pose in the world frame and is
+optional (its keys may appear in any order; all four pose keys or none). Other comment lines are ignored.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ __all__ = ["ScanFileError", "save_scan_csv", "load_scan_csv", "HEADER"]
 
 HEADER = "angle_rad,range_m"
 _POSE_KEYS = ("pose_x_m", "pose_y_m", "pose_yaw_rad", "stamp_s")
+_ANGLE_LIMIT_RAD = 2.0 * math.pi  # beyond this (or a wider span) the angles are taken to be degrees
 
 
 class ScanFileError(ValueError):
@@ -56,11 +59,12 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     """Read a scan written by :func:`save_scan_csv` (or by hand in the same format).
 
     Raises :class:`ScanFileError` on a missing header, a malformed row, a non-numeric value, uneven or
-    descending angles, or a bad pose comment; the message gives ``file:line``.
+    descending angles, angles that look like degrees, a bad range limit or a bad pose comment; the
+    message gives ``file:line``.
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # -sig: a leading BOM (Excel) is dropped
     except (OSError, UnicodeDecodeError) as e:
         raise ScanFileError(f"{p}: cannot read scan file: {e}") from None
     meta: dict[str, float] = {}
@@ -100,6 +104,9 @@ def load_scan_csv(path: str | Path) -> LaserScan:
             raise ScanFileError(f"{p}:{n}: not a number in {line!r}") from None
         if not math.isfinite(a):
             raise ScanFileError(f"{p}:{n}: angle must be finite, got {cells[0]!r}")
+        if abs(a) > _ANGLE_LIMIT_RAD:
+            raise ScanFileError(f"{p}:{n}: angle {a:g} is outside [-2 pi, 2 pi] rad: the angle_rad column looks like "
+                                "degrees (angles must be in radians)")
         if r < 0:
             raise ScanFileError(f"{p}:{n}: negative range {r}")
         angles.append(a)
@@ -110,6 +117,9 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     if len(angles) < 2:
         raise ScanFileError(f"{p}: need at least 2 beams, got {len(angles)}")
     ang = np.asarray(angles)
+    if ang[-1] - ang[0] > _ANGLE_LIMIT_RAD + 1e-9:
+        raise ScanFileError(f"{p}:{line_of[-1]}: the angles span {ang[-1] - ang[0]:g} rad, more than a full turn "
+                            "(2 pi): the angle_rad column looks like degrees (angles must be in radians)")
     d = np.diff(ang)
     inc = float((ang[-1] - ang[0]) / (len(ang) - 1))
     if inc <= 0 or np.any(d <= 0):
@@ -124,6 +134,16 @@ def load_scan_csv(path: str | Path) -> LaserScan:
     if present and len(present) != 3:
         raise ScanFileError(f"{p}:{meta_line[present[0]]}: pose metadata incomplete, have {present}, "
                             "need pose_x_m, pose_y_m, pose_yaw_rad")
+    for k in (*_POSE_KEYS, "range_min_m"):
+        if k in meta and not math.isfinite(meta[k]):
+            raise ScanFileError(f"{p}:{meta_line[k]}: metadata {k} must be finite, got {meta[k]}")
+    rmax = meta.get("range_max_m", math.inf)
+    rmin = meta.get("range_min_m", 0.0)
+    if "range_min_m" in meta and rmin < 0:
+        raise ScanFileError(f"{p}:{meta_line['range_min_m']}: metadata range_min_m must be >= 0, got {rmin:g}")
+    if "range_max_m" in meta and not rmax > max(rmin, 0.0):  # NaN refused too
+        need = f"> range_min_m ({rmin:g})" if rmin > 0 else "> 0"
+        raise ScanFileError(f"{p}:{meta_line['range_max_m']}: metadata range_max_m must be {need}, got {rmax:g}")
     pose = Pose2D(meta["pose_x_m"], meta["pose_y_m"], meta["pose_yaw_rad"]) if present else None
-    return LaserScan(float(ang[0]), inc, np.asarray(ranges, dtype=float), meta.get("range_max_m", math.inf),
+    return LaserScan(float(ang[0]), inc, np.asarray(ranges, dtype=float), rmax,
                      meta.get("stamp_s", 0.0), pose)

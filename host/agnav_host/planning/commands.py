@@ -1,12 +1,17 @@
-"""``agnav planners`` and ``agnav bench planners``: CLI wrappers around the registry and the benchmark."""
+"""``agnav planners`` and ``agnav bench planners``: CLI wrappers around the registry and the benchmark.
+
+``agnav bench`` exits 0 after a run, 1 when the output folder cannot be made or written, 2 for a bad
+option (an unknown scenario or planner entry is named, with the known ones).
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from ..cli import subcommand
+from ..cli import positive_int, subcommand
 
 __all__: list[str] = []
 
@@ -30,13 +35,16 @@ def _cmd_planners(ns: argparse.Namespace) -> int:
 @subcommand(
     "bench",
     help="run a benchmark suite (planners: the reference experiments on every planner)",
+    epilog="exit codes: 0 = done, 1 = the output folder cannot be made or written, 2 = a bad option",
     args=[
         (("suite",), {"choices": ["planners"], "help": "which benchmark"}),
         (("--out",), {"default": "bench/results/planners", "help": "output folder (default bench/results/planners)"}),
-        (("--jobs",), {"type": int, "default": None, "help": "worker processes (default: all cores)"}),
+        (("--jobs",), {"type": positive_int, "default": None, "metavar": "N",
+                       "help": "worker processes, >= 1 (default: all cores)"}),
         (("--scenarios",), {"default": None, "help": "comma-separated subset of the suite's scenarios"}),
         (("--planners",), {"default": None, "help": "comma-separated subset of planner entries (e.g. flb@0.3,him)"}),
-        (("--seeds",), {"type": int, "default": None, "help": "use only the first N seeds of each case"}),
+        (("--seeds",), {"type": positive_int, "default": None, "metavar": "N",
+                        "help": "use only the first N >= 1 seeds of each case (default: all)"}),
         (("--no-plot",), {"action": "store_true", "help": "skip the PNG plots"}),
         (("--quiet",), {"action": "store_true", "help": "no progress bar"}),
     ],
@@ -56,19 +64,52 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
         suite = [c for c in suite if c.scenario in want]
     if ns.planners:
         want_p = {p.strip() for p in ns.planners.split(",") if p.strip()}
+        known_p = sorted({p for c in SUITE for p in c.planners})
+        unknown_p = sorted(want_p - set(known_p))
+        if unknown_p or not want_p:
+            what = f"unknown planner entr{'y' if len(unknown_p) == 1 else 'ies'} {', '.join(unknown_p)}" if unknown_p \
+                else "no planner entry given"
+            print(f"agnav bench: {what}; known: {', '.join(known_p)}", file=sys.stderr)
+            return 2
+        if not any(p in want_p for c in suite for p in c.planners):
+            print(f"agnav bench: the chosen scenarios run none of {', '.join(sorted(want_p))}; they run: "
+                  f"{', '.join(sorted({p for c in suite for p in c.planners}))}", file=sys.stderr)
+            return 2
         suite = [replace(c, planners=tuple(p for p in c.planners if p in want_p)) for c in suite]
         suite = [c for c in suite if c.planners]
     if ns.seeds is not None:
-        suite = [replace(c, seeds=c.seeds[: max(1, ns.seeds)]) for c in suite]
+        suite = [replace(c, seeds=c.seeds[: ns.seeds]) for c in suite]
     if not suite:
         print("agnav bench: nothing to run", file=sys.stderr)
         return 2
+    bad_out = _unusable_out_dir(ns.out)
+    if bad_out:  # before the run, so that a long run is not lost to a typo
+        print(f"agnav bench: --out {ns.out}: {bad_out}", file=sys.stderr)
+        return 1
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)
     wall = time.perf_counter() - t0
     cmd = f"agnav bench planners --out {ns.out}" + (f" --jobs {ns.jobs}" if ns.jobs else "") + \
         (f" --scenarios {ns.scenarios}" if ns.scenarios else "") + (f" --planners {ns.planners}" if ns.planners else "") + \
         (f" --seeds {ns.seeds}" if ns.seeds is not None else "")
-    paths = write_report(results, ns.out, cmd, wall, plots=not ns.no_plot)
+    try:
+        paths = write_report(results, ns.out, cmd, wall, plots=not ns.no_plot)
+    except OSError as e:  # disk full, folder removed or made read-only during the run
+        from ..cli import _report_write_failure
+
+        return _report_write_failure("bench", ns.out, e)
     print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {ns.out}")
     return 0
+
+
+def _unusable_out_dir(out: str) -> str | None:
+    """Why ``out`` cannot be the output folder (a file, or a folder that cannot be made), or None; the
+    folder is made here."""
+    p = Path(out)
+    if p.exists() and not p.is_dir():
+        return "is a file, not a folder"
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"cannot create the folder: {e.strerror or e}"
+    return None

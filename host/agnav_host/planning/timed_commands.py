@@ -5,7 +5,11 @@
 Poses are ``X,Y,HEADING_DEG`` in m and deg (negative numbers work: ``--goal -3,5,90``). Limits default
 to the ref-003 RC car (wheelbase 174 mm, steering <= 20 deg commanded and 17 deg planned, speed 0 or
 43.5-200 cm/s, 1 m/s^2). Exit code 0 when the plan meets the time, 3 when it does not (the output then
-gives the reason and the earliest feasible arrival).
+gives the reason and the earliest feasible arrival, or says why no path fits), 2 for a bad option value.
+
+``--samples N`` prints N states evenly spaced in time from the start to the moment the car is at rest on
+the goal; the plan's *arrival* (``duration_s``) is a fraction of a second earlier, when the final stop
+brings the car within 5 cm of the goal (see :class:`~agnav_host.planning.timed.TimedLimits`).
 """
 
 from __future__ import annotations
@@ -13,8 +17,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 
-from ..cli import subcommand
+from ..cli import finite_float, int_in, nonneg_float, positive_float, subcommand
+from .timed import TimedLimits
 
 __all__: list[str] = []
 
@@ -32,21 +38,38 @@ def _pose(text: str) -> tuple[float, float, float]:
     return vals[0], vals[1], vals[2]
 
 
+_DEF = TimedLimits()
+_MAX_STEER_DEG = math.degrees(_DEF.max_steer_rad)
+_PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
+
+
 @subcommand(
     "plan",
     help="timed trajectory from a start pose to a goal pose arriving at a set time (ref 003)",
+    epilog="exit codes: 0 = feasible, 3 = not feasible (the reason is printed), 2 = a bad option value",
     args=[
         (("--start",), {"type": _pose, "required": True, "metavar": "X,Y,HDG_DEG", "help": "start pose (m, m, deg)"}),
         (("--goal",), {"type": _pose, "required": True, "metavar": "X,Y,HDG_DEG", "help": "goal pose (m, m, deg)"}),
-        (("--arrive-in",), {"type": float, "default": None, "metavar": "SECONDS",
-                            "help": "arrival time after the start, s (default: untimed, at the cruise speed)"}),
-        (("--start-steer-deg",), {"type": float, "default": 0.0, "help": "steering angle at the start, deg"}),
-        (("--goal-steer-deg",), {"type": float, "default": 0.0, "help": "steering angle at the goal, deg"}),
-        (("--start-speed",), {"type": float, "default": 0.0, "help": "speed at the start, m/s"}),
-        (("--max-speed",), {"type": float, "default": 2.0, "help": "top of the speed band, m/s (default 2.0)"}),
-        (("--min-speed",), {"type": float, "default": 0.435, "help": "bottom of the speed band, m/s (default 0.435)"}),
-        (("--accel",), {"type": float, "default": 1.0, "help": "acceleration limit, m/s^2 (default 1.0)"}),
-        (("--samples",), {"type": int, "default": 0, "help": "also print this many (t, x, y, yaw, speed, steer) samples"}),
+        (("--arrive-in",), {"type": positive_float, "default": None, "metavar": "SECONDS",
+                            "help": "arrival time after the start, s, > 0 (default: untimed, at the cruise speed "
+                                    f"{_DEF.cruise_m_s:g} m/s, capped at --max-speed)"}),
+        (("--start-steer-deg",), {"type": finite_float, "default": 0.0, "metavar": "DEG",
+                                  "help": f"steering angle at the start, deg, + = left, |value| <= {_MAX_STEER_DEG:g} "
+                                          f"(the plan starts from at most {_PLAN_STEER_DEG:g}) (default 0)"}),
+        (("--goal-steer-deg",), {"type": finite_float, "default": 0.0, "metavar": "DEG",
+                                 "help": f"steering angle at the goal, deg, + = left, |value| <= {_PLAN_STEER_DEG:g} "
+                                         "(default 0)"}),
+        (("--start-speed",), {"type": nonneg_float, "default": 0.0, "metavar": "M_S",
+                              "help": "speed at the start, m/s, >= 0 and <= --max-speed (default 0)"}),
+        (("--max-speed",), {"type": positive_float, "default": _DEF.v_max_m_s, "metavar": "M_S",
+                            "help": f"top of the speed band, m/s (default {_DEF.v_max_m_s:g})"}),
+        (("--min-speed",), {"type": nonneg_float, "default": _DEF.v_min_m_s, "metavar": "M_S",
+                            "help": f"bottom of the speed band, m/s (default {_DEF.v_min_m_s:g})"}),
+        (("--accel",), {"type": positive_float, "default": _DEF.accel_m_s2, "metavar": "M_S2",
+                        "help": f"acceleration limit, m/s^2, > 0 (default {_DEF.accel_m_s2:g})"}),
+        (("--samples",), {"type": int_in(2), "default": None, "metavar": "N",
+                          "help": "also print N >= 2 states (t s, x m, y m, yaw deg, speed m/s, steering deg) evenly "
+                                  "spaced from the start to the car at rest on the goal (default: none)"}),
         (("--json",), {"action": "store_true", "help": "print JSON"}),
     ],
     negative_ok=["--start", "--goal", "--start-steer-deg", "--goal-steer-deg"],
@@ -54,41 +77,53 @@ def _pose(text: str) -> tuple[float, float, float]:
 def _cmd_plan(ns: argparse.Namespace) -> int:
     import numpy as np
 
-    from .timed import BoundaryState, TimedLimits, plan_timed
+    from .timed import BoundaryState, plan_timed
 
-    if ns.arrive_in is not None and not (math.isfinite(ns.arrive_in) and ns.arrive_in > 0):
-        print("agnav plan: --arrive-in must be > 0", flush=True)
+    for opt, val, lim_deg in (("--start-steer-deg", ns.start_steer_deg, _MAX_STEER_DEG),
+                              ("--goal-steer-deg", ns.goal_steer_deg, _PLAN_STEER_DEG)):
+        if abs(val) > lim_deg + 1e-9:
+            print(f"agnav plan: {opt} {val:g} is beyond the steering limit of +-{lim_deg:g} deg", file=sys.stderr)
+            return 2
+    if ns.start_speed > ns.max_speed:
+        print(f"agnav plan: --start-speed {ns.start_speed:g} m/s is above --max-speed {ns.max_speed:g} m/s", file=sys.stderr)
         return 2
     try:
         lim = TimedLimits(v_min_m_s=ns.min_speed, v_max_m_s=ns.max_speed, accel_m_s2=ns.accel)
     except ValueError as e:
-        print(f"agnav plan: {e}")
+        print(f"agnav plan: {e}", file=sys.stderr)
         return 2
     sx, sy, sh = ns.start
     gx, gy, gh = ns.goal
     start = BoundaryState(sx, sy, math.radians(sh), math.radians(ns.start_steer_deg), ns.start_speed)
     goal = BoundaryState(gx, gy, math.radians(gh), math.radians(ns.goal_steer_deg), 0.0)
     if math.hypot(gx - sx, gy - sy) < 1e-6:
-        print("agnav plan: start and goal positions coincide")
+        print("agnav plan: start and goal positions coincide", file=sys.stderr)
         return 2
     plan = plan_timed(start, goal, 0.0, ns.arrive_in, lim)
     out = plan.summary()
-    if ns.samples > 0 and plan.path.length_m > 0:
-        ts = np.linspace(0.0, plan.duration_s, ns.samples)
+    out["rest_s"] = round(plan.profile.duration_s, 3)  # at rest on the goal (arrival = within 5 cm, earlier)
+    if ns.samples is not None and plan.path.length_m > 0:
+        ts = np.linspace(0.0, plan.profile.duration_s, ns.samples)  # the last one: at rest on the goal
         x, y, yaw, k, v, _ = plan.at(ts)
-        out["samples"] = [[round(float(a), 4) for a in row] for row in
-                          zip(ts, x, y, np.degrees(yaw), v, np.degrees(np.arctan(lim.wheelbase_m * k)))]
+        yaw_deg = (np.degrees(yaw) + 180.0) % 360.0 - 180.0  # the path's yaw is unwrapped (loops reach +-360)
+        out["samples"] = [[round(float(a), 4) + 0.0 for a in row] for row in  # + 0.0: no -0.0
+                          zip(ts, x, y, yaw_deg, v, np.degrees(np.arctan(lim.wheelbase_m * k)))]
     if ns.json:
         print(json.dumps(out, indent=2))
     else:
         verdict = "feasible" if plan.feasible else "NOT feasible"
         print(f"{verdict}: {plan.reason}")
-        print(f"  path {out['path_length_m']:.2f} m, duration {out['duration_s']:.2f} s, cruise {out['cruise_speed_mps']:.3f} m/s, "
-              f"max speed {out['max_speed_mps']:.3f} m/s, max steering {out['max_steering_deg']:.1f} deg, dwell {out['dwell_s']:.2f} s")
+        if plan.path.length_m > 0:
+            print(f"  path {out['path_length_m']:.2f} m, duration {out['duration_s']:.2f} s, cruise {out['cruise_speed_mps']:.3f} m/s, "
+                  f"max speed {out['max_speed_mps']:.3f} m/s, max steering {out['max_steering_deg']:.1f} deg, "
+                  f"dwell {out['dwell_s']:.2f} s")
         if out["earliest_arrival_s"] is not None:
             print(f"  earliest feasible arrival: {out['earliest_arrival_s']:.2f} s")
         if out["via_points"]:
             print(f"  via points: {out['via_points']}")
+        if "samples" in out:
+            print(f"  arrival (within {lim.arrive_tol_m * 100:g} cm of the goal) at {out['duration_s']:.2f} s, "
+                  f"at rest on the goal at {out['rest_s']:.2f} s")
         for row in out.get("samples", []):
             print("  t={:7.2f} x={:8.3f} y={:8.3f} yaw={:7.2f} v={:6.3f} steer={:6.2f}".format(*row))
     return 0 if plan.feasible else 3

@@ -249,8 +249,13 @@ def _build_leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float,
     rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
     form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
     CX, CY = _leg_candidates(ra, rb, chord * _SCALES, wheelbase_m, form)
-    _, _, sp, kap, _ = _eval_leg(CX, CY, 41)
-    ok = sp.min(axis=0) >= 1e-3 * chord  # no cusp
+    _, _, sp, kap, hd = _eval_leg(CX, CY, 41)
+    # no cusp: the tangent never (nearly) vanishes at a sample, and never turns by more than 90 deg
+    # between two neighbouring samples. The second test catches a cusp that falls between samples on
+    # a straight back-and-forth leg (goal behind the start, same heading): there the curvature is 0
+    # everywhere and the heading flips by 180 deg in place, which no car can drive.
+    turn = np.abs((np.diff(hd, axis=0) + math.pi) % (2.0 * math.pi) - math.pi)
+    ok = (sp.min(axis=0) >= 1e-3 * chord) & (turn.max(axis=0) < 0.5 * math.pi)
     if not ok.any():
         raise ValueError("no cusp-free polynomial leg between the states")
     peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)

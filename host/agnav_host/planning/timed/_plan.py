@@ -193,15 +193,26 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     states = (s0, *vias, goal)
     try:
         if path is None:
-            path = build_path(list(states), lim.wheelbase_m)
-        if auto_via and not vias and math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
+            try:
+                path = build_path(list(states), lim.wheelbase_m)
+            except ValueError:
+                # e.g. a goal behind the start: the direct leg would need a cusp (an in-place reversal);
+                # a generated via point may still give a drivable loop
+                if not (auto_via and not vias):
+                    raise
+                found = _auto_via(s0, goal, lim, deadline)
+                if found is None:
+                    raise
+                path, states = found
+        if auto_via and not vias and len(states) == 2 and math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
             found = _auto_via(s0, goal, lim, deadline)
             if found is not None:
                 path, states = found
     except ValueError as e:
         empty = SpeedProfile(np.array([0.0]), np.zeros(0), np.zeros(0), np.zeros(0), ())
         dummy = GeoPath(np.array([[s0.x_m, s0.y_m]]), np.array([s0.yaw_rad]), np.zeros(1), np.zeros(1), (), (0.0,))
-        return TimedPlan(dummy, empty, t_start_s, arrival_s, False, f"no path: {e}", None, lim, states, tags)
+        return TimedPlan(dummy, empty, t_start_s, arrival_s, False, f"no path: {_no_path_reason(s0, goal, e)}", None,
+                         lim, states, tags)
     sp = lim.speed
     S = path.length_m
     v0 = s0.speed_m_s
@@ -278,6 +289,19 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     if steer_need > lim.plan_steer_rad + 1e-6:
         earliest = None  # no timing fixes the geometry
     return TimedPlan(path, profile, t_start_s, arrival_s, feasible, reason, earliest, lim, states, tags, settle)
+
+
+def _no_path_reason(s0: BoundaryState, goal: BoundaryState, err: ValueError) -> str:
+    """Why no path was found, in the user's terms where the geometry says more than ``err``."""
+    bearing = math.atan2(goal.y_m - s0.y_m, goal.x_m - s0.x_m)
+    behind = math.cos(norm_angle_rad(bearing - s0.yaw_rad)) < 0.0
+    if behind and abs(norm_angle_rad(goal.yaw_rad - s0.yaw_rad)) < math.radians(45.0):
+        return ("the goal is behind the start with the same heading: it needs reversing (or a loop wider than the "
+                "via-point search), which the planner does not do; give a via point or a goal ahead of the start")
+    if behind:
+        return ("the goal is behind the start: it needs reversing or a turn the planner could not fit; give a via "
+                f"point or a goal ahead of the start ({err})")
+    return str(err)
 
 
 def _auto_via(s0: BoundaryState, goal: BoundaryState, lim: TimedLimits,

@@ -363,6 +363,11 @@ class TimedPlanner:
         self.replan_cpu_s.append(time.thread_time() - c0)
         self.replan_work.append(work)
         self._last_replan_t = t
+        if new is not None and new.path.length_m <= 0.0:
+            # no drivable geometry from here (e.g. the rest of the way would need reversing): keep the
+            # current plan rather than adopt an empty one
+            action += f"; kept the current plan ({new.reason})"
+            new = None
         self.events.append((t, action))
         if new is not None:
             if not action.endswith("stop and wait"):
