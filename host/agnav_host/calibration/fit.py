@@ -115,8 +115,6 @@ def _neutral(u: np.ndarray, med: np.ndarray, thr: float) -> float:
     still = np.abs(med) < thr
     if still.any():
         # the largest run of consecutive still PWMs (a stray zero far out must not move neutral)
-        best: tuple[int, int] = (0, -1)
-        i = 0
         idx = np.flatnonzero(still)
         runs: list[list[int]] = [[idx[0]]]
         for j in idx[1:]:
@@ -125,7 +123,6 @@ def _neutral(u: np.ndarray, med: np.ndarray, thr: float) -> float:
             else:
                 runs.append([j])
         run = max(runs, key=len)
-        del best, i
         return float(np.mean(u[run]))
     s = np.sign(med)
     for i in range(len(u) - 1):

@@ -17,6 +17,12 @@ Procedure (ref 003, section 6.5, with the robot measuring itself):
 4. Fit (isotonic, per side, dead band), show the fit (PNG), ask before writing.
 5. Write AGNAV_CALIB_TABLE, read back (AGNAV_CALIB_REQUEST READ) and compare, then save
    (AGNAV_CALIB_ACTION_SAVE) if the operator agrees.
+
+Every way out of the sweep stops the car (zero setpoints): Ctrl-C and unexpected errors also engage
+the e-stop; a lost link (:class:`LinkLost`: the endpoint reports the link down, or no telemetry for
+``link_timeout_s`` or for a whole step) and closed input (:class:`InputClosed`: EOF on stdin, e.g.
+``--yes < /dev/null`` where a circle diameter must be typed) abort with a plain message and nothing
+written.
 """
 
 from __future__ import annotations
@@ -35,7 +41,8 @@ from ..link.config import CalibrationConfig
 from ..link.robot import AgnavRobot
 from .fit import CalibFitError, FitResult, fit_table, steer_from_diameter, steer_from_motion, yaw_rate_from_wheels
 
-__all__ = ["Wizard", "ConsoleIO", "ScriptedIO", "StepResult", "Aborted", "sweep_points", "MAX_STEPS"]
+__all__ = ["Wizard", "ConsoleIO", "ScriptedIO", "StepResult", "Aborted", "LinkLost", "InputClosed", "sweep_points",
+           "MAX_STEPS"]
 
 MAX_STEPS = 40
 SETPOINT_HZ = 10.0
@@ -46,23 +53,40 @@ class Aborted(RuntimeError):
     """The operator declined, or the robot could not be driven safely."""
 
 
-class ConsoleIO:
-    """Prompts on the terminal."""
+class LinkLost(Aborted):
+    """The link to the robot went down (or telemetry stopped) during the sweep."""
 
-    def __init__(self, assume_yes: bool = False) -> None:
+
+class InputClosed(Aborted):
+    """The operator's input ended (EOF on stdin) where the wizard needed an answer."""
+
+
+class ConsoleIO:
+    """Prompts on the terminal. ``input_fn`` reads a line (default: the builtin ``input``, which raises
+    EOFError when stdin is closed; the wizard turns that into a clean :class:`InputClosed`)."""
+
+    def __init__(self, assume_yes: bool = False, input_fn: Callable[[str], str] | None = None) -> None:
         self.assume_yes = assume_yes
+        self.input_fn = input_fn
 
     def say(self, text: str) -> None:
         print(text, flush=True)
+
+    def _input(self, prompt: str) -> str:
+        try:
+            return (self.input_fn or input)(prompt)
+        except EOFError:
+            print(flush=True)  # end the prompt's line before the error message
+            raise
 
     def confirm(self, question: str) -> bool:
         if self.assume_yes:
             print(f"{question} [y/N] y (--yes)")
             return True
-        return input(f"{question} [y/N] ").strip().lower() in ("y", "yes")
+        return self._input(f"{question} [y/N] ").strip().lower() in ("y", "yes")
 
     def ask(self, question: str) -> str:
-        return input(f"{question} ").strip()
+        return self._input(f"{question} ").strip()
 
 
 @dataclass
@@ -127,6 +151,14 @@ class Wizard:
         self.steps: list[StepResult] = []
         self.plots: list[Path] = []
 
+    # ---- operator input -------------------------------------------------------------------------
+    def _confirm(self, question: str, moved: bool = False) -> bool:
+        try:
+            return bool(self.io.confirm(question))
+        except EOFError:
+            raise InputClosed(f"input closed (EOF on stdin) at the question {question!r}; "
+                              f"{'the car is stopped; ' if moved else ''}nothing was written") from None
+
     # ---- safety ---------------------------------------------------------------------------------
     def _brief(self, what: str) -> None:
         c = self.cfg
@@ -134,7 +166,7 @@ class Wizard:
                     f"most {c.max_step_s:.0f} s and {c.max_distance_m:.1f} m; the firmware's failsafe and obstacle "
                     f"layers stay active. Use an open, flat area with >= {c.max_distance_m:.0f} m free all around. "
                     "Ctrl-C stops the car with the firmware e-stop.")
-        if not self.io.confirm("Area clear, wheels on the ground, e-stop at hand: start?"):
+        if not self._confirm("Area clear, wheels on the ground, e-stop at hand: start?"):
             raise Aborted("operator declined")
 
     def _prepare(self) -> None:
@@ -170,12 +202,22 @@ class Wizard:
         ok = True
         pwm = steer_pwm if kind == "steer" else speed_pwm
         start_counts: tuple[int, ...] | None = None
+        link_timeout = float(getattr(ep, "link_timeout_s", 3.0))
+        last_rx = t0          # last telemetry of this step (any of the subscribed types)
+        n_rx = 0              # telemetry frames received during the step
+        n_motion = 0          # ... of them, the ones the measurement method reads
         with ep.subscribe(["AGNAV_ENCODER_STATUS", "AGNAV_ODOMETRY", "AGNAV_BEHAVIOUR_STATUS"]) as sub:
             next_send = 0.0
             bad_since: float | None = None
             while True:
                 now = time.monotonic()
                 el = now - t0
+                if ep.stats.link_up is False:
+                    raise self._link_lost(pwm, "the link is down")
+                if getattr(ep.stats, "transport_open", True) is False:
+                    raise self._link_lost(pwm, "the connection to the robot closed")
+                if now - last_rx > link_timeout:
+                    raise self._link_lost(pwm, f"no telemetry for {now - last_rx:.1f} s")
                 if el >= min(c.settle_s + c.hold_s, c.max_step_s):
                     break
                 if now >= next_send:
@@ -184,6 +226,8 @@ class Wizard:
                 m = sub.get(max(0.0, min(next_send - time.monotonic(), 0.05)))
                 if m is None:
                     continue
+                last_rx = time.monotonic()
+                n_rx += 1
                 t = m.get_type()
                 if t == "AGNAV_BEHAVIOUR_STATUS":
                     if m.active_layer != 5 and el > 0.3:  # not HOST_COMMAND: something overrides us
@@ -194,6 +238,7 @@ class Wizard:
                     else:
                         bad_since = None
                 elif t == "AGNAV_ENCODER_STATUS" and m.count_wheels >= 1:
+                    n_motion += 1 if method == "encoders" else 0
                     k = m.count_wheels
                     nm = float(self.robot.state.params.get("ENC_NM_PER_CNT", 13550000.0))
                     if start_counts is None:
@@ -212,6 +257,7 @@ class Wizard:
                         w = yaw_rate_from_wheels(speeds[0], speeds[1], c.track_m)
                         values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
                 elif t == "AGNAV_ODOMETRY" and el >= c.settle_s and method == "odometry":
+                    n_motion += 1
                     v = m.speed_mm_s / 1000.0
                     if kind == "speed":
                         values.append(float(m.speed_mm_s))
@@ -219,9 +265,18 @@ class Wizard:
                         w = math.radians(m.yaw_rate_cdeg_s / 100.0)
                         values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
         dur = time.monotonic() - t0
+        if n_rx == 0 and dur >= 0.3:  # a whole step without one frame of 10-50 Hz telemetry: link gone
+            raise self._link_lost(pwm, f"no telemetry during the {dur:.1f} s step")
         if ok and not values and method != "diameter":
-            ok, note = False, note or "no usable samples (is the car moving? encoders connected?)"
+            if n_motion:  # telemetry arrives but shows no usable motion
+                ok, note = False, note or "no usable samples (is the car moving? encoders connected?)"
+            else:
+                ok, note = False, note or f"no {'encoder' if method == 'encoders' else 'odometry'} telemetry during the step"
         return StepResult(pwm, values, dur, dist, ok, note)
+
+    def _link_lost(self, pwm: int, why: str) -> LinkLost:
+        return LinkLost(f"link lost during the sweep at pwm {pwm}; nothing was written ({why}; stop setpoints "
+                        "sent, and the firmware's link-loss failsafe stops the car)")
 
     def _pause_between_steps(self) -> None:
         end = time.monotonic() + self.cfg.pause_s
@@ -245,6 +300,9 @@ class Wizard:
         else:
             pwms = sweep_points(c.speed_pwm_min, c.speed_pwm_max, c.speed_step)
         self.io.say(f"{kind}: {len(pwms)} steps {pwms[0]}..{pwms[-1]}, measuring with {method}")
+        if method == "diameter":
+            self.io.say("fewer than two wheel encoders: after each step, measure the circle the car drove and type "
+                        "its diameter (--yes answers only the yes/no questions)")
         xs: list[float] = []
         ys: list[float] = []
         for p in pwms:
@@ -262,7 +320,14 @@ class Wizard:
         return np.array(xs, dtype=float), np.array(ys, dtype=float)
 
     def _ask_diameter(self, r: StepResult) -> StepResult:
-        a = self.io.ask(f"pwm {r.pwm}: diameter of the circle driven in m, then L or R (e.g. '1.9 L'; 'inf' if straight):")
+        try:
+            a = self.io.ask(f"pwm {r.pwm}: diameter of the circle driven in m, then L or R (e.g. '1.9 L'; 'inf' if "
+                            "straight):")
+        except EOFError:
+            raise InputClosed(f"input closed (EOF on stdin) at pwm {r.pwm}: the steering sweep of a robot with fewer "
+                              "than two wheel encoders needs the measured circle diameter typed in after each step, "
+                              "and stdin was closed (--yes answers only the yes/no questions; run it in a terminal). "
+                              "The car is stopped; nothing was written") from None
         parts = a.split()
         try:
             dia = float(parts[0])
@@ -293,11 +358,15 @@ class Wizard:
                 self.io.say(f"fit plot: {png}")
             except RuntimeError as e:
                 self.io.say(str(e))
-        if not self.io.confirm("Write this table to the robot (active at once, verified by read-back)?"):
+        if not self._confirm("Write this table to the robot (active at once, verified by read-back)?", moved=True):
             raise Aborted("table not written")
         self.robot.calib_write_verified(fit.table, save=False)
         self.io.say("written and verified by read-back")
-        do_save = save if save is not None else self.io.confirm("Save all tables to EEPROM?")
+        try:
+            do_save = save if save is not None else self.io.confirm("Save all tables to EEPROM?")
+        except EOFError:
+            raise InputClosed("input closed (EOF on stdin) at the question 'Save all tables to EEPROM?': the "
+                              "table is written and active but not saved (lost at the next reset)") from None
         if do_save:
             self.robot.calib_save(table_id)
             self.io.say("saved to EEPROM")
@@ -309,16 +378,23 @@ class Wizard:
         steer_tab = previous if table_id == TABLE_STEER else self.robot.calib_read(TABLE_STEER)
         self._steer_neutral = steer_tab.neutral_pwm
         self.io.say(f"active table: {previous.describe()}")
-        try:
+        estop = False
+        try:  # the car is stopped on every way out of the sweep (finally)
             self._prepare()
             xs, ys = self._sweep(kind)
         except KeyboardInterrupt:
-            self._stop(estop=True)
+            estop = True
             raise Aborted("interrupted: e-stop engaged (release with `agnav run` or the wizard)") from None
-        except BaseException:
-            self._stop(estop=True)
+        except EOFError:  # an io object other than ConsoleIO/ScriptedIO ran out of input
+            raise InputClosed("input closed (EOF on stdin) during the sweep; the car is stopped; nothing was "
+                              "written") from None
+        except Aborted:  # link lost, input closed: zero setpoints; an e-stop request would wait in vain
             raise
-        self._stop()
+        except BaseException:
+            estop = True
+            raise
+        finally:
+            self._stop(estop=estop)
         return self._fit_write(kind, table_id, xs, ys, previous, save)
 
     def run_steering(self, save: bool | None = None) -> FitResult:

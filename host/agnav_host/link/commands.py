@@ -1,42 +1,100 @@
 """``agnav`` subcommands of the link area: run, calibrate, flash, replay, param, key, config.
 
 Every command reads the host config (``--config``, see docs/user_guide.md) and lets options
-override it. Exit codes: 0 ok, 1 robot/link failure, 2 usage or configuration error, 130 Ctrl-C.
+override it. Exit codes: 0 ok, 1 robot/link failure or an output file that cannot be written,
+2 usage or configuration error, 130 Ctrl-C. Options and output paths are checked before the link
+is opened wherever that can be known.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from ..cli import parse_goal, subcommand
+from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand
+from .config import CalibrationConfig, LinkConfig
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 _sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
+_LINK_DEFAULTS = LinkConfig()
+_CAL_DEFAULTS = CalibrationConfig()
+MAV_TYPE_GCS = 6
+PNG_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what `--png` writes (matplotlib picks by suffix)
 
 _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--device",), {"default": None, "help": "serial:/dev/ttyUSB0:57600, /dev/ttyACM0, tcp:HOST:PORT (SIL: "
                                               "tcp:127.0.0.1:5760), udp:HOST:PORT (default: [link] device)"}),
-    (("--baud",), {"type": int, "default": None, "help": "baud of a serial device (default 57600)"}),
+    (("--baud",), {"type": positive_int, "default": None,
+                   "help": f"baud of a serial device given without one, > 0 (default: [link] baud, "
+                           f"{_LINK_DEFAULTS.baud})"}),
     (("--config",), {"default": None, "help": "host config TOML (default ~/.config/agnav/host.toml)"}),
     (("--tlog",), {"default": None, "help": "telemetry log path (default: [link] log_dir/<command>-<time>.tlog)"}),
     (("--no-tlog",), {"action": "store_true", "help": "do not write a telemetry log"}),
     (("--sign",), {"action": "store_true", "help": "sign outgoing frames (MAVLink 2 signing)"}),
     (("--key-file",), {"default": None, "help": "signing key file (default ~/.config/agnav/signing.key)"}),
-    (("--target-system",), {"type": int, "default": None, "help": "robot system id (default: first heartbeat)"}),
-    (("--wait",), {"type": float, "default": 5.0, "help": "seconds to wait for the robot's heartbeat (default 5)"}),
+    (("--target-system",), {"type": int_in(1, 255), "default": None, "metavar": "1..255",
+                            "help": "robot MAVLink system id, 1..255 (default: [link] target_system; 0 there = "
+                                    "the first heartbeat heard)"}),
+    (("--wait",), {"type": positive_float, "default": 5.0,
+                   "help": "seconds to wait for the connection to open and then for the robot's heartbeat, > 0 "
+                           "(default 5)"}),
 ]
 
 
 def _err(cmd: str, text: str) -> None:
     print(f"agnav {cmd}: {text}", file=sys.stderr)
+
+
+class OutputError(Exception):
+    """An output file that cannot be written (exit 1); the message names the path and the reason."""
+
+
+def _unwritable_reason(p: Path) -> str | None:
+    """Why ``p`` cannot be written (without leaving anything behind), or None if it can."""
+    if p.is_dir():
+        return "it is a directory"
+    parent = p.parent
+    anc = parent
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        return f"{anc} is not a directory"
+    try:
+        if anc == parent:
+            existed = p.exists()
+            with open(p, "ab"):
+                pass
+            if not existed:
+                p.unlink()
+        else:  # the missing folders will be made: this must be allowed where they start
+            tempfile.TemporaryDirectory(dir=anc).cleanup()
+    except OSError as e:
+        if isinstance(e, FileNotFoundError) and parent.is_dir():
+            return f"{parent} does not take new files ({e.strerror})"
+        return e.strerror or str(e)
+    return None
+
+
+def check_output(option: str, path: str | Path, suffixes: tuple[str, ...] = ()) -> Path:
+    """Refuse an output path before any work: a wrong suffix is a usage error (ValueError, exit 2),
+    a path that cannot be written an :class:`OutputError` (exit 1)."""
+    p = Path(path)
+    if suffixes and p.suffix.lower() not in suffixes:
+        raise ValueError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}")
+    why = _unwritable_reason(p)
+    if why:
+        raise OutputError(f"{option} {path}: cannot write there: {why}")
+    return p
 
 
 def _config(ns: argparse.Namespace) -> Any:
@@ -45,9 +103,32 @@ def _config(ns: argparse.Namespace) -> Any:
     return load_config(getattr(ns, "config", None))
 
 
-def _open(ns: argparse.Namespace, cmd: str, cfg: Any) -> Any:
-    """Endpoint from options + config, started, heartbeat seen."""
-    from .endpoint import Endpoint
+def _tlog_path(ns: argparse.Namespace, cmd: str, cfg: Any) -> str | None:
+    """The telemetry log this session writes (None with --no-tlog), checked writable."""
+    if ns.no_tlog:
+        return None
+    tlog = ns.tlog or str(Path(cfg.link.log_dir) / f"{cmd}-{time.strftime('%Y%m%d-%H%M%S')}.tlog")
+    check_output("--tlog" if ns.tlog else "telemetry log", tlog)
+    return tlog
+
+
+def _drop_empty(path: str | None) -> None:
+    """Remove a telemetry log nothing was written to (the session never got going)."""
+    if path:
+        try:
+            if os.path.getsize(path) == 0:
+                os.unlink(path)
+        except OSError:
+            pass
+
+
+_NO_TLOG_YET = object()
+
+
+def _open(ns: argparse.Namespace, cmd: str, cfg: Any, tlog: Any = _NO_TLOG_YET) -> Any:
+    """Endpoint from options + config, started, heartbeat seen (from ``--target-system`` when set).
+    On failure the endpoint is closed and an empty telemetry log removed."""
+    from .endpoint import Endpoint, LinkTimeout
     from .keys import load_key
 
     lc = cfg.link
@@ -55,19 +136,44 @@ def _open(ns: argparse.Namespace, cmd: str, cfg: Any) -> Any:
     key = None
     if ns.sign or lc.signing or ns.key_file:
         key = load_key(ns.key_file or lc.key_file or None)
-    tlog = None
-    if not ns.no_tlog:
-        tlog = ns.tlog or str(Path(lc.log_dir) / f"{cmd}-{time.strftime('%Y%m%d-%H%M%S')}.tlog")
+    if tlog is _NO_TLOG_YET:
+        tlog = _tlog_path(ns, cmd, cfg)
+    target = ns.target_system if ns.target_system is not None else lc.target_system
 
     def on_event(text: str) -> None:
         print(f"[link] {text}", file=sys.stderr, flush=True)
 
+    heard: dict[int, int] = {}  # system id -> component id of every robot heartbeat
+
+    def listen(m: Any) -> None:
+        if m.get_type() == "HEARTBEAT" and m.type != MAV_TYPE_GCS:
+            heard.setdefault(m.get_srcSystem(), m.get_srcComponent())
+
     ep = Endpoint(device, ns.baud or lc.baud, source_system=lc.sysid, source_component=lc.compid,
-                  target_system=ns.target_system if ns.target_system is not None else lc.target_system,
-                  tlog=tlog, key=key, require_signed=lc.require_signed, heartbeat_hz=lc.heartbeat_hz,
-                  link_timeout_s=lc.link_timeout_s, reconnect_delay_s=lc.reconnect_delay_s,
-                  budget_bytes_s=lc.budget_bytes_s, budget_window_s=lc.budget_window_s, on_event=on_event)
-    ep.start(wait_heartbeat_s=ns.wait)
+                  target_system=target, tlog=tlog, key=key, require_signed=lc.require_signed,
+                  heartbeat_hz=lc.heartbeat_hz, link_timeout_s=lc.link_timeout_s,
+                  reconnect_delay_s=lc.reconnect_delay_s, budget_bytes_s=lc.budget_bytes_s,
+                  budget_window_s=lc.budget_window_s, on_event=on_event)
+    ep.add_listener(listen)
+    try:
+        ep.start(wait_heartbeat_s=None if target else ns.wait, open_timeout_s=max(1.0, ns.wait))
+        if target:
+            deadline = time.monotonic() + ns.wait
+            while target not in heard and time.monotonic() < deadline:
+                time.sleep(0.02)
+            if target not in heard:
+                others = sorted(heard)
+                if others:
+                    raise LinkTimeout(
+                        f"no heartbeat from system {target} within {ns.wait:.1f} s on {ep.spec}; heard system(s) "
+                        f"{', '.join(map(str, others))}: use --target-system {others[0]} (or [link] target_system), "
+                        "or leave it at 0 to take the first heartbeat")
+                raise LinkTimeout(f"no heartbeat from system {target} (nor any other) within {ns.wait:.1f} s "
+                                  f"on {ep.spec}")
+    except BaseException:
+        ep.close()
+        _drop_empty(tlog)
+        raise
     if tlog:
         print(f"logging to {tlog}", file=sys.stderr)
     return ep
@@ -76,11 +182,14 @@ def _open(ns: argparse.Namespace, cmd: str, cfg: Any) -> Any:
 def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
     from .config import ConfigError
     from .endpoint import LinkTimeout
-    from .keys import KeyError_
+    from .keys import KeyError_, KeyWriteError
     from .robot import CommandFailed
 
     try:
         return int(fn(ns))
+    except (OutputError, KeyWriteError) as e:
+        _err(cmd, str(e))
+        return 1
     except (ConfigError, KeyError_, ValueError) as e:
         _err(cmd, str(e))
         return 2
@@ -141,6 +250,34 @@ def _status_line(ep: Any, t: float) -> str:
     return f"t={t:6.1f} s  {lay:34s} {pose}  link {link} {ep.meter.rate(time.monotonic()):5.0f} B/s"
 
 
+def planner_needs_laser(name: str) -> bool:
+    """True when host planner ``name`` cannot take a step without a laser scan, which `agnav run`
+    never has (the robot reports odometry and its sonar ring): one probe step on a scan-less
+    observation, before anything touches the robot."""
+    import numpy as np
+
+    from ..planning.base import InvalidObservation, RobotSpec
+    from ..planning.registry import make_planner
+    from ..types import Goal, Observation, Pose2D, SonarFrame
+
+    n = 12
+    sonar = SonarFrame(0.0, np.ones(n, dtype=bool), np.full(n, np.nan), np.full(n, np.nan))
+    try:
+        planner = make_planner(name, RobotSpec())
+        planner.reset()
+        planner.step(Observation(0.0, Pose2D(), 0.0, 0.0, Goal(5.0, 0.0), sonar=sonar))
+    except InvalidObservation as e:
+        return "laser" in str(e)
+    except Exception:  # anything else shows up (with its own message) in the run itself
+        return False
+    return False
+
+
+def _plain(e: BaseException) -> str:
+    """A planner's error without the internal field names (``(obs.scan is None)``)."""
+    return re.sub(r"\s*\(obs\.\w+ is None\)", "", str(e))
+
+
 def _cmd_run(ns: argparse.Namespace) -> int:
     from ..types import DriveCommand, Goal
 
@@ -161,12 +298,38 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         from ..planning.registry import canonical_name
 
         canonical_name(planner_name)  # UnknownPlanner (ValueError) before touching the robot
+        if planner_needs_laser(planner_name):
+            from ..planning.registry import planner_names
+
+            ok = [n for n in planner_names() if not planner_needs_laser(n)]
+            _err("run", f"planner {planner_name} needs a laser; this run has none (`agnav run` gets odometry and the "
+                        f"sonar ring from the robot): use a planner without one ({', '.join(ok)}) or the firmware "
+                        "layers (no --planner)")
+            return 2
+    elif goal is not None and goal.yaw_rad is not None:
+        _err("run", f"warning: heading {ns.goal[2]:g} deg ignored: the firmware's move-to-goal layer drives to the "
+                    "position only (the host planners, --planner, use the heading)")
     rec = None
+    if ns.rrd:
+        check_output("--rrd", ns.rrd, (".rrd",))
+        from ..viz import VizUnavailable
+        from ..viz.recorder import require_rerun
+
+        try:
+            require_rerun()
+        except VizUnavailable as e:
+            _err("run", str(e))
+            return 2
+    tlog = _tlog_path(ns, "run", cfg)  # checked writable before the link opens
+    ep = _open(ns, "run", cfg, tlog)
     if ns.rrd:
         from ..viz import Recorder
 
-        rec = Recorder.to_file(ns.rrd)
-    ep = _open(ns, "run", cfg)
+        try:
+            rec = Recorder.to_file(ns.rrd)
+        except (OSError, RuntimeError) as e:
+            ep.close()
+            raise OutputError(f"--rrd {ns.rrd}: cannot write there: {getattr(e, 'strerror', None) or e}") from None
     if ns.autopilot == "ardupilot":
         from .ardupilot import ArduRover, ArduRoverConfig
 
@@ -212,8 +375,9 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         blind = False
         next_status = 0.0
         last_layer = None
+        hdg = f", {ns.goal[2]:g} deg" if goal is not None and goal.yaw_rad is not None and planner_name else ""
         print(f"running: {'planner ' + planner_name if planner_name else 'firmware layers'}"
-              f"{f', goal ({goal.x_m:g}, {goal.y_m:g})' if goal else ''}; Ctrl-C stops the robot", flush=True)
+              f"{f', goal ({goal.x_m:g}, {goal.y_m:g}{hdg})' if goal else ''}; Ctrl-C stops the robot", flush=True)
         while True:
             loop_t = time.monotonic()
             t = loop_t - t0
@@ -243,7 +407,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
                 try:
                     cmd = planner.step(obs)
                 except PlanningError as e:
-                    _err("run", f"planner {planner_name}: {e}; stopping")
+                    _err("run", f"planner {planner_name}: {_plain(e)}; stopping")
                     robot.stop()
                     return 1
                 v = max(-spec.max_speed_m_s, min(spec.max_speed_m_s, cmd.speed_m_s))
@@ -305,16 +469,20 @@ def _stats_line(ep: Any) -> str:
 
 subcommand("run", help="drive a robot (or a SIL over tcp:) with the firmware layers or a host planner; Ctrl-C e-stops",
            args=_LINK_ARGS + [
-               (("--planner",), {"default": None, "help": "host planner (see `agnav planners`); default: firmware "
-                                                          "move-to-goal layer"}),
+               (("--planner",), {"default": None, "help": "host planner (see `agnav planners`; sonar planners only: "
+                                                          "subsumption, follow-path, timed); default: [run] planner, "
+                                                          "else the firmware move-to-goal layer"}),
                (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,DEG]",
-                              "help": "goal in the odometry frame, m, m, deg; negatives allowed"}),
+                              "help": "goal in the odometry frame, m, m, deg; negatives allowed; the heading is used "
+                                      "by host planners only (default: none)"}),
                (("--autopilot",), {"choices": ["agnav", "ardupilot"], "default": "agnav",
                                    "help": "agnav firmware (default) or a stock ArduPilot Rover"}),
-               (("--duration",), {"type": float, "default": None, "help": "stop after this many seconds"}),
+               (("--duration",), {"type": positive_float, "default": None,
+                                  "help": "stop after this many seconds, > 0 (default: until the goal or Ctrl-C)"}),
                (("--follow-wall",), {"action": "store_true", "help": "enable the firmware follow-wall layer"}),
                (("--no-avoid",), {"action": "store_true", "help": "disable passive obstacle avoidance (careful)"}),
-               (("--rrd",), {"default": None, "help": "save a rerun recording here (open with `rerun FILE`)"}),
+               (("--rrd",), {"default": None, "help": "save a rerun recording here, FILE.rrd (open with `rerun FILE`; "
+                                                      "default: none)"}),
            ], negative_ok=["--goal"])(lambda ns: _guard("run", _cmd_run, ns))
 
 
@@ -348,13 +516,23 @@ subcommand("calibrate", help="calibration wizard: sweep raw PWM, fit, write, ver
            args=_LINK_ARGS + [
                (("table",), {"choices": ["steering", "speed"], "help": "which table"}),
                (("--plot-dir",), {"default": "logs", "help": "where the fit PNG goes (default logs/)"}),
-               (("--yes",), {"action": "store_true", "help": "answer yes to every question (also saves)"}),
+               (("--yes",), {"action": "store_true", "help": "answer yes to every yes/no question (also saves); measured "
+                                                          "circle diameters (robots with fewer than two wheel "
+                                                          "encoders) must still be typed"}),
                (("--no-save",), {"action": "store_true", "help": "write and verify, but do not save to EEPROM"}),
-               (("--settle-s",), {"dest": "settle_s", "type": float, "default": None, "help": "override [calibration] settle_s"}),
-               (("--hold-s",), {"dest": "hold_s", "type": float, "default": None, "help": "override [calibration] hold_s"}),
-               (("--max-step-s",), {"dest": "max_step_s", "type": float, "default": None, "help": "override max_step_s"}),
-               (("--max-distance-m",), {"dest": "max_distance_m", "type": float, "default": None,
-                                        "help": "override max_distance_m"}),
+               (("--settle-s",), {"dest": "settle_s", "type": nonneg_float, "default": None, "metavar": "S",
+                                  "help": "seconds ignored at the start of every sweep step, >= 0 (default: "
+                                          f"[calibration] settle_s, {_CAL_DEFAULTS.settle_s:g} s)"}),
+               (("--hold-s",), {"dest": "hold_s", "type": positive_float, "default": None, "metavar": "S",
+                                "help": "seconds measured in every sweep step after the settling, > 0 (default: "
+                                        f"[calibration] hold_s, {_CAL_DEFAULTS.hold_s:g} s)"}),
+               (("--max-step-s",), {"dest": "max_step_s", "type": positive_float, "default": None, "metavar": "S",
+                                    "help": "hard limit on one sweep step, seconds, > 0 (default: [calibration] "
+                                            f"max_step_s, {_CAL_DEFAULTS.max_step_s:g} s)"}),
+               (("--max-distance-m",), {"dest": "max_distance_m", "type": positive_float, "default": None,
+                                        "metavar": "M",
+                                        "help": "a sweep step ends early after this distance, metres, > 0 (default: "
+                                                f"[calibration] max_distance_m, {_CAL_DEFAULTS.max_distance_m:g} m)"}),
            ])(lambda ns: _guard("calibrate", _cmd_calibrate, ns))
 
 
@@ -370,7 +548,27 @@ def flash_command(env: str, port: str | None, repo: Path = REPO_ROOT) -> tuple[l
     return cmd, envv
 
 
+def pio_envs(repo: Path = REPO_ROOT) -> list[str] | None:
+    """The ``[env:NAME]`` sections of ``platformio.ini`` (None when the file is not there)."""
+    try:
+        text = (repo / "platformio.ini").read_text()
+    except OSError:
+        return None
+    return re.findall(r"^\[env:([^\]]+)\]", text, re.MULTILINE)
+
+
 def _cmd_flash(ns: argparse.Namespace) -> int:
+    envs = pio_envs()
+    if envs is not None:
+        boards = [e for e in envs if e != "native"]
+        if ns.env == "native":
+            _err("flash", "env native is the PC build (it runs as the SIL: `agnav sil`), there is no board to flash; "
+                          f"boards: {', '.join(boards)}")
+            return 2
+        if ns.env not in envs:
+            _err("flash", f"unknown PlatformIO env {ns.env!r}; known in {REPO_ROOT / 'platformio.ini'}: "
+                          f"{', '.join(boards)}")
+            return 2
     cmd, envv = flash_command(ns.env, ns.port)
     print("$ PLATFORMIO_CORE_DIR=" + envv["PLATFORMIO_CORE_DIR"] + " " + " ".join(cmd), flush=True)
     if ns.dry_run:
@@ -382,19 +580,29 @@ def _cmd_flash(ns: argparse.Namespace) -> int:
 
 
 subcommand("flash", help="build and upload the firmware (pio run -e ENV -t upload, offline core in .pio-core)",
-           args=[(("--env",), {"default": "megaatmega2560", "help": "PlatformIO env (default megaatmega2560; stm32f405)"}),
+           args=[(("--env",), {"default": "megaatmega2560",
+                               "help": "PlatformIO env to build and upload: default megaatmega2560 (Arduino Mega); "
+                                       "also stm32f405 (the [env:...] sections of platformio.ini)"}),
                  (("--port",), {"default": None, "help": "upload port, e.g. /dev/ttyACM0 (default: pio autodetect)"}),
                  (("--dry-run",), {"action": "store_true", "help": "print the command only"})])(_cmd_flash)
 
 
 # ---- replay --------------------------------------------------------------------------------------
 def _cmd_replay(ns: argparse.Namespace) -> int:
-    from .replay import summarize_tlog
+    from .replay import TlogError, summarize_tlog
 
-    if not Path(ns.log).is_file():
-        _err("replay", f"{ns.log}: no such file")
+    # usage first (wrong suffixes), then whether the outputs can be written, then the work
+    for opt, path, suffixes in (("--png", ns.png, PNG_SUFFIXES), ("--rrd", ns.rrd, (".rrd",))):
+        if path and Path(path).suffix.lower() not in suffixes:
+            raise ValueError(f"{opt} {path}: the file name must end in {' or '.join(suffixes)}")
+    try:
+        s = summarize_tlog(ns.log)
+    except TlogError as e:
+        _err("replay", str(e))
         return 2
-    s = summarize_tlog(ns.log)
+    for opt, path in (("--png", ns.png), ("--rrd", ns.rrd)):
+        if path:
+            check_output(opt, path)
     if not s.rx_msgs and not s.tx_msgs:
         size = Path(ns.log).stat().st_size
         _err("replay", f"{ns.log}: no MAVLink frames in {size} B (empty, or not a .tlog telemetry log)")
@@ -405,7 +613,9 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
 
         try:
             print(f"plot: {plot_run(s, ns.png)}")
-        except RuntimeError as e:
+        except (OSError, ValueError) as e:
+            raise OutputError(f"--png {ns.png}: cannot write there: {getattr(e, 'strerror', None) or e}") from None
+        except RuntimeError as e:  # matplotlib missing
             _err("replay", str(e))
             return 2
     if ns.rrd:
@@ -416,18 +626,89 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
         except VizUnavailable as e:
             _err("replay", str(e))
             return 2
+        except (OSError, RuntimeError) as e:
+            raise OutputError(f"--rrd {ns.rrd}: cannot write there: {getattr(e, 'strerror', None) or e}") from None
     return 0
 
 
 subcommand("replay", help="summarise a .tlog (rates, layers, status texts); optional PNG and rerun .rrd",
            args=[(("log",), {"help": "telemetry log (.tlog, mavutil format)"}),
-                 (("--rrd",), {"default": None, "help": "write a rerun recording of the log"}),
-                 (("--png",), {"default": None, "help": "write a matplotlib plot (path, layer over time)"}),
-                 (("--budget",), {"type": float, "default": 1500.0, "help": "telemetry budget to compare with, B/s"})])(
-    _cmd_replay)
+                 (("--rrd",), {"default": None,
+                               "help": "write a rerun recording of the log, FILE.rrd (default: none)"}),
+                 (("--png",), {"default": None, "help": "write a matplotlib plot (path, layer over time), FILE.png "
+                                                        "(.pdf, .svg, .jpg also work; default: none)"}),
+                 (("--budget",), {"type": positive_float, "default": 1500.0,
+                                  "help": "telemetry budget to compare with, B/s, > 0 (default 1500)"})])(
+    lambda ns: _guard("replay", _cmd_replay, ns))
 
 
 # ---- param ---------------------------------------------------------------------------------------
+#: MAV_PARAM_TYPE values of whole-number parameters (UINT8 .. INT64)
+INT_PARAM_TYPES = frozenset(range(1, 9))
+
+
+class UnknownParameter(ValueError):
+    """The robot has no parameter of that name (or did not answer for it)."""
+
+
+def known_param_names() -> list[str]:
+    """Parameter names of the AgNav firmware (its PARAMS table, mirrored by the fake robot)."""
+    try:
+        from .fake import FIRMWARE_PARAMS
+    except ImportError:
+        return []
+    return list(FIRMWARE_PARAMS)
+
+
+def _unknown_param_text(name: str, why: str) -> str:
+    known = known_param_names()
+    hint = ""
+    if name != name.upper() and name.upper() in known:
+        hint = f"; parameter names are case-sensitive: did you mean {name.upper()}?"
+    else:
+        close = difflib.get_close_matches(name.upper(), known, n=3, cutoff=0.6)
+        if close:
+            hint = f"; did you mean {' or '.join(close)}?"
+    return f"no parameter named {name} on the robot ({why}){hint} (`agnav param list` lists them)"
+
+
+def _param_number(name: str, text: str) -> float:
+    """VALUE of ``param set``: a finite number, and a whole one for the firmware's integer parameters."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"param set {name}: value {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"param set {name}: value must be a finite number, got {text!r}")
+    if name in known_param_names() and v != int(v):
+        raise ValueError(f"param set {name}: {name} is a whole-number parameter, got {text!r}")
+    return v
+
+
+def _param_read(ep: Any, robot: Any, name: str) -> Any:
+    """PARAM_VALUE of ``name``; :class:`UnknownParameter` when the robot refuses the name (its
+    STATUSTEXT "unknown parameter") or never answers for a name the firmware does not know."""
+    from .endpoint import LinkTimeout
+    from .robot import _pid
+
+    def match(m: Any) -> bool:
+        if m.get_type() == "PARAM_VALUE":
+            return _pid(m) == name
+        text = m.text if isinstance(m.text, str) else bytes(m.text).decode("ascii", "replace")
+        return "unknown parameter" in text
+
+    try:
+        m = ep.request(lambda: robot.mav.param_request_read_encode(*robot._tgt(), name.encode(), -1),
+                       ["PARAM_VALUE", "STATUSTEXT"], match, robot.timeout_s, robot.retries, f"param get {name}")
+    except LinkTimeout as e:
+        if name in known_param_names():
+            raise
+        raise UnknownParameter(_unknown_param_text(name, f"or no answer: {e}")) from None
+    if m.get_type() == "STATUSTEXT":
+        raise UnknownParameter(_unknown_param_text(name, "the robot refused the name"))
+    return m
+
+
 def _cmd_param(ns: argparse.Namespace) -> int:
     from .robot import AgnavRobot
 
@@ -437,6 +718,13 @@ def _cmd_param(ns: argparse.Namespace) -> int:
     if ns.action == "set" and ns.value is None:
         _err("param", "param set needs NAME VALUE")
         return 2
+    if ns.action == "list" and ns.name is not None:
+        _err("param", f"param list takes no NAME (got {ns.name!r}); use `agnav param get {ns.name}`")
+        return 2
+    if ns.action == "get" and ns.value is not None:
+        _err("param", f"param get takes one NAME (got also {ns.value!r}); to change it: `agnav param set NAME VALUE`")
+        return 2
+    value = _param_number(ns.name, ns.value) if ns.action == "set" else None
     cfg = _config(ns)
     ep = _open(ns, "param", cfg)
     try:
@@ -447,9 +735,15 @@ def _cmd_param(ns: argparse.Namespace) -> int:
                 print(f"{k:16s} {v:g}")
             print(f"{len(params)} parameters", file=sys.stderr)
         elif ns.action == "get":
-            print(f"{ns.name} {r.param_get(ns.name):g}")
+            print(f"{ns.name} {float(_param_read(ep, r, ns.name).param_value):g}")
         else:
-            print(f"{ns.name} {r.param_set(ns.name, float(ns.value)):g}")
+            assert value is not None
+            cur = _param_read(ep, r, ns.name)  # the name exists, and its type, before anything is sent
+            if cur.param_type in INT_PARAM_TYPES and value != int(value):
+                _err("param", f"param set {ns.name}: {ns.name} is a whole-number parameter (now {cur.param_value:g}), "
+                              f"got {ns.value!r}; nothing sent")
+                return 2
+            print(f"{ns.name} {r.param_set(ns.name, value):g}")
         return 0
     finally:
         ep.close()
@@ -457,9 +751,14 @@ def _cmd_param(ns: argparse.Namespace) -> int:
 
 subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARAM_* protocol)",
            args=_LINK_ARGS + [(("action",), {"choices": ["list", "get", "set"]}),
-                              (("name",), {"nargs": "?", "default": None}),
-                              (("value",), {"nargs": "?", "default": None, "help": "number (negative allowed)"}),
-                              (("--timeout",), {"type": float, "default": 1.0, "help": "per-request timeout, s"})])(
+                              (("name",), {"nargs": "?", "default": None,
+                                           "help": "parameter name, case-sensitive (e.g. LINK_TIMEOUT_MS)"}),
+                              (("value",), {"nargs": "?", "default": None,
+                                            "help": "set: a finite number (negative allowed; whole for the "
+                                                    "firmware's integer parameters)"}),
+                              (("--timeout",), {"type": positive_float, "default": 1.0,
+                                                "help": "seconds to wait for each answer, > 0, 3 tries (default 1; "
+                                                        "list: 10 x this, at least 10 s)"})])(
     lambda ns: _guard("param", _cmd_param, ns))
 
 
@@ -518,7 +817,8 @@ subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerp
                (("--old-key-file",), {"default": None, "help": "push: the key the robot holds now (sign with it); "
                                                                 "without it the frame goes unsigned"}),
                (("--clear",), {"action": "store_true", "help": "push: switch signing off on the robot"}),
-               (("--timeout",), {"type": float, "default": 1.0, "help": "push: per-request timeout, s"}),
+               (("--timeout",), {"type": positive_float, "default": 1.0,
+                                 "help": "push: seconds to wait for each answer, > 0, 3 tries (default 1)"}),
                (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),
                (("--reveal",), {"action": "store_true", "help": "show: also print the secret key (hex)"})])(
     lambda ns: _guard("key", _cmd_key, ns))
@@ -526,23 +826,24 @@ subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerp
 
 # ---- config --------------------------------------------------------------------------------------
 def _cmd_config(ns: argparse.Namespace) -> int:
-    from .config import config_template, default_config_path
+    from .config import config_template, default_config_path, to_toml
 
     if ns.template:
+        if ns.config:
+            _err("config", "--template prints the built-in defaults and reads no file; for the configuration "
+                           f"{ns.config} gives, run `agnav config --config {ns.config}`")
+            return 2
         print(config_template(), end="")
         return 0
     cfg = _config(ns)
-    import dataclasses
-
-    print(f"# effective host configuration ({cfg.source or 'defaults; file ' + str(default_config_path()) + ' absent'})")
-    for section in ("link", "run", "calibration", "ardupilot", "viz"):
-        print(f"[{section}]")
-        for k, v in dataclasses.asdict(getattr(cfg, section)).items():
-            print(f"{k} = {v!r}")
+    src = cfg.source or f"defaults; file {default_config_path()} absent"
+    print(to_toml(cfg, f"effective host configuration ({src})"), end="")
     return 0
 
 
 subcommand("config", help="show the effective host configuration, or --template for a file with every default",
-           args=[(("--config",), {"default": None, "help": "host config TOML"}),
-                 (("--template",), {"action": "store_true", "help": "print a complete config file"})])(
+           args=[(("--config",), {"default": None, "help": "host config TOML (default ~/.config/agnav/host.toml)"}),
+                 (("--template",), {"action": "store_true",
+                                    "help": "print a complete config file with the built-in defaults "
+                                            "(not with --config)"})])(
     lambda ns: _guard("config", _cmd_config, ns))

@@ -2,21 +2,30 @@
 
 Looked up in this order: ``--config PATH``, ``$AGNAV_CONFIG``, ``~/.config/agnav/host.toml``
 (``$XDG_CONFIG_HOME`` respected); a missing default file means all defaults. Unknown sections or
-keys are errors (a typo must not silently fall back to a default). Command-line options override
-the file.
+keys are errors (a typo must not silently fall back to a default), and so are values out of range
+(:data:`RULES`: rates, speeds and timeouts finite and > 0, MAVLink ids 1..255, min < max pairs,
+enumerated strings, planner names from the planner registry). Every error reads
+``FILE: [section] key: reason``. Command-line options override the file.
+
+:func:`to_toml` writes a config back as TOML that :func:`load_config` reads (``agnav config``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import math
 import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 __all__ = ["HostConfig", "LinkConfig", "RunConfig", "CalibrationConfig", "ArduPilotConfig", "VizConfig",
-           "ConfigError", "load_config", "default_config_path", "config_template"]
+           "ConfigError", "load_config", "default_config_path", "config_template", "to_toml", "validate_config",
+           "SECTIONS", "RULES"]
+
+SECTIONS = ("link", "run", "calibration", "ardupilot", "viz")
 
 
 class ConfigError(ValueError):
@@ -113,24 +122,134 @@ def _fill(obj: Any, table: dict[str, Any], section: str) -> None:
         cur = getattr(obj, k)
         if isinstance(cur, bool):
             if not isinstance(v, bool):
-                raise ConfigError(f"[{section}] {k} must be true or false, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be true or false, got {v!r}")
         elif isinstance(cur, int):
             if isinstance(v, bool) or not isinstance(v, int):
-                raise ConfigError(f"[{section}] {k} must be an integer, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be an integer, got {v!r}")
         elif isinstance(cur, float):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ConfigError(f"[{section}] {k} must be a number, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be a number, got {v!r}")
             v = float(v)
         elif isinstance(cur, str) and not isinstance(v, str):
-            raise ConfigError(f"[{section}] {k} must be a string, got {v!r}")
+            raise ConfigError(f"[{section}] {k}: must be a string, got {v!r}")
         setattr(obj, k, v)
 
 
+# ---- value checks --------------------------------------------------------------------------------
+Check = Callable[[Any], "str | None"]  # value -> reason it is wrong, or None
+
+
+def _positive(v: Any) -> str | None:
+    if not math.isfinite(v):
+        return f"must be a finite number > 0, got {v!r}"
+    return None if v > 0 else f"must be > 0, got {v!r}"
+
+
+def _nonneg(v: Any) -> str | None:
+    if not math.isfinite(v):
+        return f"must be a finite number >= 0, got {v!r}"
+    return None if v >= 0 else f"must be >= 0, got {v!r}"
+
+
+def _between(lo: float, hi: float, what: str = "") -> Check:
+    def check(v: Any) -> str | None:
+        if not math.isfinite(v) or not lo <= v <= hi:
+            return f"must be {lo:g}..{hi:g}{what}, got {v!r}"
+        return None
+
+    return check
+
+
+def _one_of(*allowed: str) -> Check:
+    def check(v: Any) -> str | None:
+        return None if v in allowed else f"must be one of {', '.join(repr(a) for a in allowed)}, got {v!r}"
+
+    return check
+
+
+def _non_empty(v: Any) -> str | None:
+    return None if v.strip() else "must not be empty"
+
+
+def _planner(v: Any) -> str | None:
+    if not v:
+        return None  # firmware layers only
+    try:
+        from ..planning.registry import canonical_name
+    except ImportError:  # the planning area is not in this build: nothing to check against
+        return None
+    try:
+        canonical_name(v)
+    except ValueError as e:
+        return str(e)
+    return None
+
+
+_PWM = _between(0, 255, " (table PWM units, one byte)")
+_MAVLINK_ID = _between(1, 255, " (a MAVLink id)")
+
+#: section -> key -> check. Keys left out take any value of the right type.
+RULES: dict[str, dict[str, Check]] = {
+    "link": {
+        "device": _non_empty, "baud": _positive, "sysid": _MAVLINK_ID, "compid": _MAVLINK_ID,
+        "target_system": _between(0, 255, " (0 = the first heartbeat seen)"), "heartbeat_hz": _positive,
+        "link_timeout_s": _positive, "reconnect_delay_s": _positive, "budget_bytes_s": _positive,
+        "budget_window_s": _positive,
+    },
+    "run": {
+        "control_hz": lambda v: None if math.isfinite(v) and v >= 5.0 else
+        f"must be >= 5 (the firmware's link timeout is 500 ms), got {v!r}",
+        "planner": _planner, "max_speed_m_s": _positive, "status_hz": _positive, "goal_tolerance_m": _positive,
+    },
+    "calibration": {
+        "steer_pwm_min": _PWM, "steer_pwm_max": _PWM, "steer_neutral_pwm": _PWM, "steer_step": _between(1, 255),
+        "steer_speed_pwm": _PWM, "speed_pwm_min": _PWM, "speed_pwm_max": _PWM, "speed_step": _between(1, 255),
+        "settle_s": _nonneg, "hold_s": _positive, "max_step_s": _positive, "pause_s": _nonneg,
+        "max_distance_m": _positive, "wheelbase_m": _positive, "track_m": _positive, "dead_band_cdeg": _nonneg,
+        "dead_band_mm_s": _nonneg,
+    },
+    "ardupilot": {
+        "mode": _one_of("velocity", "rc"), "steer_channel": _between(1, 8, " (RC override channel)"),
+        "throttle_channel": _between(1, 8, " (RC override channel)"), "trim_us": _between(800, 2200, " us"),
+        "half_range_us": _between(1, 1000, " us"), "max_speed_m_s": _positive,
+        "max_steer_deg": lambda v: None if math.isfinite(v) and 0 < v < 90 else f"must be > 0 and < 90, got {v!r}",
+        "wheelbase_m": _positive,
+    },
+    "viz": {"rrd_dir": _non_empty},
+}
+
+#: (section, low key, high key): low must be < high.
+ORDERED_PAIRS = (("calibration", "steer_pwm_min", "steer_pwm_max"), ("calibration", "speed_pwm_min", "speed_pwm_max"))
+
+
+def validate_config(cfg: HostConfig) -> None:
+    """Range checks of :data:`RULES` and :data:`ORDERED_PAIRS`; ConfigError ``[section] key: reason``."""
+    for section, rules in RULES.items():
+        obj = getattr(cfg, section)
+        for key, check in rules.items():
+            why = check(getattr(obj, key))
+            if why:
+                raise ConfigError(f"[{section}] {key}: {why}")
+    for section, lo, hi in ORDERED_PAIRS:
+        obj = getattr(cfg, section)
+        if getattr(obj, lo) >= getattr(obj, hi):
+            raise ConfigError(f"[{section}] {lo}: must be < {hi} ({getattr(obj, lo)} >= {getattr(obj, hi)})")
+    c = cfg.calibration
+    if not c.steer_pwm_min <= c.steer_neutral_pwm <= c.steer_pwm_max:
+        raise ConfigError(f"[calibration] steer_neutral_pwm: must lie in steer_pwm_min..steer_pwm_max "
+                          f"({c.steer_pwm_min}..{c.steer_pwm_max}), got {c.steer_neutral_pwm}")
+    a = cfg.ardupilot
+    if a.steer_channel == a.throttle_channel:
+        raise ConfigError(f"[ardupilot] throttle_channel: must differ from steer_channel ({a.steer_channel})")
+
+
 def load_config(path: str | Path | None = None) -> HostConfig:
-    """Load the host config (see module docstring); raises ConfigError with the offending key."""
+    """Load the host config (see module docstring); raises ConfigError naming the file and the key."""
     explicit = path or os.environ.get("AGNAV_CONFIG")
     p = Path(explicit) if explicit else default_config_path()
     cfg = HostConfig()
+    if p.is_dir():
+        raise ConfigError(f"config file {p} is a directory, not a TOML file")
     if not p.is_file():
         if explicit:
             raise ConfigError(f"config file {p} not found")
@@ -139,29 +258,44 @@ def load_config(path: str | Path | None = None) -> HostConfig:
         data = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{p}: {e}") from None
-    for section, table in data.items():
-        if section not in ("link", "run", "calibration", "ardupilot", "viz") or not isinstance(table, dict):
-            raise ConfigError(f"{p}: unknown section [{section}]")
-        _fill(getattr(cfg, section), table, section)
-    if cfg.run.control_hz < 5.0:
-        raise ConfigError(f"{p}: [run] control_hz must be >= 5 (the firmware's link timeout is 500 ms)")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{p}: cannot read: {getattr(e, 'strerror', None) or e}") from None
+    try:
+        for section, table in data.items():
+            if section not in SECTIONS:
+                raise ConfigError(f"unknown section [{section}]; known: {', '.join(f'[{s}]' for s in SECTIONS)}")
+            if not isinstance(table, dict):
+                raise ConfigError(f"[{section}] must be a table (a [{section}] header with key = value lines), "
+                                  f"got {section} = {table!r}")
+            _fill(getattr(cfg, section), table, section)
+        validate_config(cfg)
+    except ConfigError as e:
+        raise ConfigError(f"{p}: {e}") from None
     cfg.source = str(p)
     return cfg
 
 
-def config_template() -> str:
-    """A complete config file with every default (``agnav config`` prints it)."""
-    out = ["# AgNav host configuration (all keys optional; units in docs/user_guide.md)"]
-    cfg = HostConfig()
-    for section in ("link", "run", "calibration", "ardupilot", "viz"):
-        out.append(f"\n[{section}]")
-        for f in dataclasses.fields(getattr(cfg, section)):
-            v = getattr(getattr(cfg, section), f.name)
-            if isinstance(v, bool):
-                s = "true" if v else "false"
-            elif isinstance(v, str):
-                s = f'"{v}"'
-            else:
-                s = repr(v)
-            out.append(f"{f.name} = {s}")
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string with ASCII escapes is a TOML basic string
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    return repr(v)
+
+
+def to_toml(cfg: HostConfig, header: str = "") -> str:
+    """``cfg`` as a TOML file that :func:`load_config` reads back to the same values."""
+    out = [f"# {line}" for line in header.splitlines()] if header else []
+    for section in SECTIONS:
+        out.append(f"\n[{section}]" if out else f"[{section}]")
+        obj = getattr(cfg, section)
+        for f in dataclasses.fields(obj):
+            out.append(f"{f.name} = {_toml_value(getattr(obj, f.name))}")
     return "\n".join(out) + "\n"
+
+
+def config_template() -> str:
+    """A complete config file with every default (``agnav config --template`` prints it)."""
+    return to_toml(HostConfig(), "AgNav host configuration (all keys optional; units in docs/user_guide.md)")

@@ -31,9 +31,13 @@ accepted unless ``require_signed`` (an AgNav firmware holding the key signs all 
 
 from __future__ import annotations
 
+import errno
+import ipaddress
 import logging
+import os
 import queue
 import select
+import socket
 import threading
 import time
 from collections import deque
@@ -55,6 +59,10 @@ log = logging.getLogger("agnav.link")
 TELEMETRY_BUDGET_BYTES_S = 1500.0
 GCS_SYSID = 255
 GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
+#: Before the first open, a missing device file (ENOENT) or a refused connection to this machine is
+#: retried for this long only (a USB board re-enumerating after a reset or a flash, a SIL that is
+#: still starting), then reported; see :meth:`Endpoint.start`.
+OPEN_GRACE_S = 1.0
 
 
 class LinkDown(ConnectionError):
@@ -63,6 +71,56 @@ class LinkDown(ConnectionError):
 
 class LinkTimeout(TimeoutError):
     """No answer to a request within its timeout and retries."""
+
+
+def _os_error_text(e: BaseException) -> str:
+    """``[Errno N] text`` for an OS error (pyserial wraps it in a longer sentence), else str(e)."""
+    if isinstance(e, socket.gaierror):
+        return f"[Errno {e.errno}] {e.strerror}" if e.strerror else str(e)
+    en = getattr(e, "errno", None)
+    if isinstance(en, int) and en > 0:
+        return f"[Errno {en}] {os.strerror(en)}"
+    return str(e) or type(e).__name__
+
+
+def _is_loopback(host: str) -> bool:
+    if host.lower() in ("localhost", "localhost.localdomain", "ip6-localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _open_failure(spec: "DeviceSpec", e: BaseException) -> tuple[str, str]:
+    """How to treat a failure to open ``spec`` before the first success: (policy, message).
+
+    policy ``fatal``: waiting will not help (permission denied, unknown host, not a serial port, a
+    bad address): give up at once. ``grace``: the thing may appear in a moment (a device file that
+    does not exist yet, a refused connection to this machine): retry for OPEN_GRACE_S. ``retry``:
+    anything else (no route, timeouts, a remote port not open yet, busy): retry until the open
+    timeout, then report this error."""
+    text = _os_error_text(e)
+    en = getattr(e, "errno", None)
+    host = spec.address.split(":", 1)[1].rpartition(":")[0] if spec.kind != "serial" else ""
+    if isinstance(e, socket.gaierror):
+        return "fatal", f"cannot resolve host {host!r}: {text}"
+    if en in (errno.EACCES, errno.EPERM):
+        hint = (" (add the user to the dialout group: sudo usermod -aG dialout $USER, then log out and in)"
+                if spec.kind == "serial" else "")
+        return "fatal", text + hint
+    if en in (errno.ENOTTY, errno.EISDIR, errno.ENOTDIR, errno.ENXIO, errno.ENODEV) or \
+            "Inappropriate ioctl" in str(e):
+        return "fatal", f"{text} (not a serial port?)" if spec.kind == "serial" else text
+    if en in (errno.EADDRINUSE, errno.EADDRNOTAVAIL) or isinstance(e, ValueError):
+        return "fatal", text
+    if en == errno.ENOENT:
+        return "grace", text
+    if en == errno.ECONNREFUSED:
+        if _is_loopback(host):
+            return "grace", f"{text} (nothing listens on that port: is the robot bridge or `agnav sil` running?)"
+        return "retry", text
+    return "retry", text
 
 
 @dataclass(frozen=True)
@@ -76,7 +134,9 @@ class DeviceSpec:
 
 
 def parse_device(device: str, baud: int = 57600) -> DeviceSpec:
-    """Parse a device string (see module docstring); raises ValueError on nonsense."""
+    """Parse a device string (see module docstring); raises ValueError on nonsense: a port outside
+    1..65535, a missing host, a baud that is not a whole number > 0 (``serial:PATH:BAUD``; a path
+    that itself holds ':' takes an explicit baud, e.g. ``serial:/dev/serial/by-path/pci-0:1:1.0:57600``)."""
     d = device.strip()
     if not d:
         raise ValueError("empty device")
@@ -84,18 +144,44 @@ def parse_device(device: str, baud: int = 57600) -> DeviceSpec:
         if d.startswith(pfx):
             rest = d[len(pfx):]
             host, sep, port = rest.rpartition(":")
-            if not sep or not port.isdigit() or not (0 < int(port) < 65536):
-                raise ValueError(f"{device!r}: expected {pfx}HOST:PORT")
+            if not sep or not port.strip().isdigit():
+                raise ValueError(f"{device!r}: expected {pfx}HOST:PORT, e.g. {pfx}127.0.0.1:5760")
+            if not 0 < int(port) < 65536:
+                raise ValueError(f"{device!r}: port {int(port)} out of range: the port must be 1..65535")
+            if ":" in host:
+                raise ValueError(f"{device!r}: IPv6 addresses are not supported: use an IPv4 address or a host name")
+            if not host and pfx in ("tcp:", "udpout:", "udpbcast:"):
+                raise ValueError(f"{device!r}: no host: expected {pfx}HOST:PORT, e.g. {pfx}127.0.0.1:5760")
             return DeviceSpec(pfx[:-1], d, baud)
     if d.startswith("serial:"):
         rest = d[len("serial:"):]
         path, sep, b = rest.rpartition(":")
-        if sep and b.isdigit():
-            return DeviceSpec("serial", path, int(b))
-        return DeviceSpec("serial", rest, baud)
+        if sep and "/" not in b and "\\" not in b and not Path(rest).exists():
+            # the part after the last ':' is the baud (unless the whole thing is an existing path)
+            return DeviceSpec("serial", _serial_path(path, device), _baud(b, device))
+        return DeviceSpec("serial", _serial_path(rest, device), _baud(baud, device))
     if d.startswith(("/", "COM", "com")) or "tty" in d:
-        return DeviceSpec("serial", d, baud)
+        return DeviceSpec("serial", d, _baud(baud, device))
     raise ValueError(f"unknown device {device!r}: use serial:/dev/ttyUSB0:57600, tcp:HOST:PORT or udp:HOST:PORT")
+
+
+def _serial_path(path: str, device: str) -> str:
+    if not path.strip():
+        raise ValueError(f"{device!r}: no serial device path: expected serial:/dev/ttyUSB0:57600")
+    return path
+
+
+def _baud(b: object, device: str) -> int:
+    """A baud rate: a whole number > 0, else ValueError naming the device string."""
+    text = str(b).strip()
+    try:
+        v = int(text)
+    except ValueError:
+        raise ValueError(f"{device!r}: baud {text!r} is not a whole number: expected serial:PATH:BAUD, e.g. "
+                         "serial:/dev/ttyUSB0:57600 (a path containing ':' needs the baud at the end)") from None
+    if v <= 0:
+        raise ValueError(f"{device!r}: baud {v} must be > 0 (e.g. 57600)")
+    return v
 
 
 class RateMeter:
@@ -214,6 +300,9 @@ class Endpoint:
         self._next_open = 0.0
         self._last_seq: dict[tuple[int, int], int] = {}
         self._opened_once = threading.Event()
+        self._open_done = threading.Event()  # first open succeeded, or gave up (_open_error)
+        self._open_error: tuple[BaseException, str] | None = None  # last failure before the first open
+        self._open_gave_up = False
         self.require_signed = require_signed
         if key is not None:
             self.set_signing_key(key)
@@ -251,15 +340,41 @@ class Endpoint:
         self._listeners.append(fn)
 
     # ---- life cycle ------------------------------------------------------------------------------
-    def start(self, wait_heartbeat_s: float | None = None, open_timeout_s: float = 10.0) -> "Endpoint":
-        """Start the I/O thread; wait until the transport opened once (raises ConnectionError after
-        ``open_timeout_s``) and optionally for the robot's first heartbeat (LinkTimeout)."""
+    def start(self, wait_heartbeat_s: float | None = None, open_timeout_s: float | None = None) -> "Endpoint":
+        """Start the I/O thread; wait until the transport opened once and optionally for the robot's
+        first heartbeat (LinkTimeout after ``wait_heartbeat_s``).
+
+        Opening raises ConnectionError naming the OS error (``could not open serial:/dev/ttyNOPE:57600:
+        [Errno 2] No such file or directory``):
+
+        * at once when waiting cannot help: permission denied (with the dialout hint), an unknown
+          host, not a serial port, an address that cannot be bound;
+        * after OPEN_GRACE_S (1 s) of retries for a device file that does not exist or a connection
+          refused by this machine: a USB board re-enumerates within about that after a reset or a
+          flash, and a SIL just started in the background begins listening;
+        * otherwise (no route, timeouts, a remote port not open yet) after ``open_timeout_s`` of
+          retries, with the last error. ``open_timeout_s`` defaults to ``wait_heartbeat_s`` (at
+          least 1 s) when that is given, else 10 s, so one ``--wait`` bounds the wait to open.
+
+        After the first open the session never gives up: a transport that fails later (cable
+        pulled) is reopened every ``reconnect_delay_s``."""
+        if open_timeout_s is None:
+            open_timeout_s = 10.0 if wait_heartbeat_s is None else max(1.0, float(wait_heartbeat_s))
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="agnav-link", daemon=True)
             self._thread.start()
-        if not self._opened_once.wait(open_timeout_s):
+        self._open_done.wait(open_timeout_s)
+        if not self._opened_once.is_set():
+            failure = self._open_error
+            gave_up = self._open_gave_up
             self.close()
-            raise ConnectionError(f"could not open {self.spec} within {open_timeout_s:.0f} s")
+            if failure is None:
+                raise ConnectionError(f"could not open {self.spec} within {open_timeout_s:g} s "
+                                      "(the open/connect call did not return)")
+            err, text = failure
+            if gave_up:
+                raise ConnectionError(f"could not open {self.spec}: {text}") from err
+            raise ConnectionError(f"could not open {self.spec} within {open_timeout_s:g} s: {text}") from err
         if wait_heartbeat_s is not None:
             self.wait_heartbeat(wait_heartbeat_s)
         return self
@@ -324,6 +439,7 @@ class Endpoint:
 
     # ---- I/O thread --------------------------------------------------------------------------------
     def _run(self) -> None:
+        first_try: float | None = None
         while not self._stop.is_set():
             now = time.monotonic()
             if now - self._last_budget_check >= 0.5:  # rates and silence, transport open or not
@@ -339,6 +455,13 @@ class Endpoint:
                     self._next_open = now + self.reconnect_delay_s
                     if not self._opened_once.is_set():
                         log.debug("open %s failed: %s", self.spec, e)
+                        first_try = now if first_try is None else first_try
+                        policy, text = _open_failure(self.spec, e)
+                        self._open_error = (e, text)
+                        if policy == "fatal" or (policy == "grace" and now - first_try >= OPEN_GRACE_S):
+                            self._open_gave_up = True  # start() raises; nothing left to do here
+                            self._open_done.set()
+                            break
                     continue
                 if self._opened_once.is_set():
                     self.stats.reconnects += 1
@@ -346,6 +469,7 @@ class Endpoint:
                 else:
                     self._event("transport open")
                 self._opened_once.set()
+                self._open_done.set()
                 self._last_hb = -1e9  # announce ourselves at once
             try:
                 self._service(now)

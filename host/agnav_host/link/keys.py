@@ -24,7 +24,7 @@ import os
 import secrets
 from pathlib import Path
 
-__all__ = ["KeyError_", "default_key_path", "new_key", "load_key", "fingerprint", "mavlink_timestamp",
+__all__ = ["KeyError_", "KeyWriteError", "default_key_path", "new_key", "load_key", "fingerprint", "mavlink_timestamp",
            "setup_signing_message", "CLEAR_KEY"]
 
 #: SETUP_SIGNING with this key switches signing off on the robot.
@@ -36,6 +36,10 @@ class KeyError_(RuntimeError):
     """Missing, unreadable or malformed key file."""
 
 
+class KeyWriteError(KeyError_):
+    """The key file cannot be written there (no such folder, read-only, a directory...)."""
+
+
 def default_key_path() -> Path:
     base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
     return Path(base) / "agnav" / "signing.key"
@@ -44,19 +48,27 @@ def default_key_path() -> Path:
 def new_key(path: str | Path | None = None, force: bool = False) -> tuple[Path, bytes]:
     """Create a fresh random key file; refuses to overwrite unless ``force``."""
     p = Path(path) if path else default_key_path()
+    if p.is_dir():
+        raise KeyWriteError(f"cannot write signing key {p}: it is a directory; give a file name")
     if p.exists() and not force:
         raise KeyError_(f"{p} exists; use --force to replace it (peers holding the old key must be updated)")
-    p.parent.mkdir(parents=True, exist_ok=True)
     key = secrets.token_bytes(32)
-    fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(key.hex() + "\n")
-    os.chmod(p, 0o600)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(key.hex() + "\n")
+        os.chmod(p, 0o600)
+    except OSError as e:
+        where = f" ({e.filename})" if e.filename and str(e.filename) != str(p) else ""
+        raise KeyWriteError(f"cannot write signing key {p}: {e.strerror or e}{where}") from None
     return p, key
 
 
 def load_key(path: str | Path | None = None) -> bytes:
     p = Path(path) if path else default_key_path()
+    if p.is_dir():
+        raise KeyError_(f"cannot read signing key {p}: it is a directory, not a key file")
     try:
         text = p.read_text().strip()
     except OSError as e:

@@ -7,12 +7,15 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .state import LAYER_NAMES, REASON_NAMES
 from .tlog import read_tlog
 
-__all__ = ["TlogSummary", "summarize_tlog"]
+__all__ = ["TlogSummary", "TlogError", "summarize_tlog"]
+
+
+class TlogError(ValueError):
+    """The log path is not a readable file (missing, a directory, no permission)."""
 
 
 @dataclass
@@ -63,7 +66,22 @@ class TlogSummary:
         return "\n".join(out)
 
 
+def _check_readable(path: str | Path) -> None:
+    p = Path(path)
+    if p.is_dir():
+        raise TlogError(f"{p}: is a directory, not a .tlog file")
+    if not p.exists():
+        raise TlogError(f"{p}: no such file")
+    try:
+        with open(p, "rb"):
+            pass
+    except OSError as e:
+        raise TlogError(f"{p}: cannot read: {e.strerror or e}") from None
+
+
 def summarize_tlog(path: str | Path, host_sysid: int = 255) -> TlogSummary:
+    """Summary of one .tlog; :class:`TlogError` when ``path`` is not a readable file."""
+    _check_readable(path)
     s = TlogSummary(str(path))
     t0 = t_last = None
     last_layer: tuple[int, int] | None = None

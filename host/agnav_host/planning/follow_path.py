@@ -101,7 +101,6 @@ class PathFollower:
 
     def closest_s(self, x: float, y: float) -> int:
         """Index of the closest path sample in a window around the last one (keeps progress monotone)."""
-        p = self.params
         i0 = int(np.searchsorted(self.s_arr, self.s - 0.5))
         i1 = int(np.searchsorted(self.s_arr, self.s + 2.0)) + 1
         seg = self.path[i0:i1]

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_rad
+from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
