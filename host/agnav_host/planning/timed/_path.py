@@ -254,8 +254,7 @@ def _build_leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float,
     # between two neighbouring samples. The second test catches a cusp that falls between samples on
     # a straight back-and-forth leg (goal behind the start, same heading): there the curvature is 0
     # everywhere and the heading flips by 180 deg in place, which no car can drive.
-    turn = np.abs((np.diff(hd, axis=0) + math.pi) % (2.0 * math.pi) - math.pi)
-    ok = (sp.min(axis=0) >= 1e-3 * chord) & (turn.max(axis=0) < 0.5 * math.pi)
+    ok = (sp.min(axis=0) >= 1e-3 * chord) & (np.cos(np.diff(hd, axis=0)).min(axis=0) > 0.0)
     if not ok.any():
         raise ValueError("no cusp-free polynomial leg between the states")
     peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
