@@ -18,7 +18,6 @@ cores) the wall time includes waiting for a core, the CPU time does not.
 from __future__ import annotations
 
 import hashlib
-import statistics
 import sys
 import time
 from pathlib import Path

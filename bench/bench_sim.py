@@ -5,7 +5,6 @@ Run: /tmp/v/bin/python bench/bench_sim.py   (numbers depend on the machine; noth
 
 from __future__ import annotations
 
-import math
 import statistics
 import time
 

@@ -1,12 +1,11 @@
-import math
 
 import numpy as np
 import pytest
 
-from agnav_host.planning import RobotSpec, make_planner, planner_names
+from agnav_host.planning import RobotSpec, make_planner
 from agnav_host.planning.base import InvalidObservation
 
-from _planning_helpers import empty_scan, obs_with, sonar_frame, wall_ahead
+from _planning_helpers import empty_scan, obs_with, sonar_frame
 
 SPEC = RobotSpec(radius_m=0.225, max_speed_m_s=0.5)
 ISSUE_NAMES = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .build import LIB_PATH, build_library
+from .build import build_library
 
 __all__ = ["Firmware", "Outputs", "PARAMS_RESULT", "BACKENDS", "ENCODER_FAULTS", "SONAR_FAULTS", "EEPROM_RECORDS",
            "RESET_CAUSES"]

@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 
 from ..sim.scenario import Scenario
-from ..sim.world import World
 from ..types import Goal, Pose2D, norm_angle_rad
 from .session import PlannerHost, SilConfig, SilSession
 

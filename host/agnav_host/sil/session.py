@@ -27,9 +27,8 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..sim.metrics import RunMetrics
-from ..sim.runner import HOLE_FALL_DEPTH_M, TRAJECTORY_COLUMNS, RunResult, _standin_params, write_outputs
+from ..sim.runner import HOLE_FALL_DEPTH_M, RunResult, _standin_params, write_outputs
 from ..sim.controller import Controller, GoalSeekParams, make_standin
-from ..sim.robots import DiffDrive
 from ..sim.scenario import Scenario
 from ..types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
 from .binding import Firmware, _COutputs

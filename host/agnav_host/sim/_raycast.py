@@ -33,7 +33,6 @@ def _beam_pairs(start_rel: FloatArray, width: FloatArray, rel: FloatArray) -> tu
     ``width`` (k,) interval widths in rad (0..2pi); ``rel`` (n,) ascending beam angles relative to the
     same centre, inside [-pi, pi]. Returns (object index, beam index) arrays of all covered pairs.
     """
-    n = len(rel)
     end_rel = start_rel + width
     full = width >= TWO_PI - 1e-12
     # piece 1: [start, min(end, pi)]; piece 2 (wrap): [-pi, end - 2pi] when end > pi

@@ -13,7 +13,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
+from ..types import DriveCommand, Observation, norm_angle_rad
 from ..planning.base import free_distances_m  # one implementation for stand-ins and planners
 
 __all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m"]
