@@ -25,7 +25,7 @@ TRAFFIC = [
     ("AGNAV_ODOMETRY", "robot -> host", "10 Hz"),
     ("AGNAV_ENCODER_STATUS", "robot -> host", "10 Hz"),
     ("AGNAV_SONAR_RING", "robot -> host", "10 Hz (once a ring is complete)"),
-    ("HEARTBEAT", "both", "robot 1 Hz (custom_mode = active layer); host >= 1 Hz, >= 2.5 / LINK_TIMEOUT_MS when it sends no setpoints"),
+    ("HEARTBEAT", "both", "robot 1 Hz (custom_mode = active layer); host >= 1 Hz, >= 2.5 / LINK_TIMEOUT_MS when it sends no setpoints; only a type MAV_TYPE_GCS heartbeat counts for the host (not another robot's)"),
     ("NAMED_VALUE_INT", "robot -> host", "1 Hz, `T_<task>`: worst run time of one scheduler task, us (round robin)"),
     ("STATUSTEXT", "robot -> host", "on events (calibration defaulted, parameter refused, ...)"),
     ("AGNAV_DRIVE_SETPOINT", "host -> robot", ">= 5 Hz while driving (counts as a heartbeat; LINK_TIMEOUT_MS 500)"),

@@ -317,7 +317,9 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
     s_state.rx_frames++;
     switch (m->msgid) {
     case MAVLINK_MSG_ID_HEARTBEAT:
-        if (m->sysid != s_cfg.sysid) {
+        /* only a ground station's: another robot on the same radio net (a fleet) must not keep this
+         * one's link-loss failsafe quiet when its own host is gone */
+        if (m->sysid != s_cfg.sysid && mavlink_msg_heartbeat_get_type(m) == MAV_TYPE_GCS) {
             s_state.host_heartbeat_ms = now_ms;
             s_state.host_seen = true;
         }

@@ -2,6 +2,7 @@
 #include <unity.h>
 
 #include "hal.h"
+#include "hal_clock_ms.h"
 #include "sim/hal_sim.h"
 
 static uint8_t s_last_idx, s_last_ab, s_calls;
@@ -26,9 +27,27 @@ void tearDown(void) {}
 static void test_sim_time_advances_and_wraps_at_32_bits(void)
 {
     sim_time_set_us(0xFFFFFF00u);
-    sim_time_advance_us(0x200u);
-    TEST_ASSERT_EQUAL_UINT32(0x100u, hal_time_us());
-    TEST_ASSERT_EQUAL_UINT32(0u, hal_time_ms());
+    TEST_ASSERT_EQUAL_UINT32(4294967u, hal_time_ms());
+    sim_time_advance_us(5000u);
+    TEST_ASSERT_EQUAL_UINT32(0x1288u, hal_time_us()); /* microseconds wrap ... */
+    TEST_ASSERT_EQUAL_UINT32(4294972u, hal_time_ms()); /* ... milliseconds count on */
+}
+
+/* The millisecond clock the AVR and sim HALs share: against a 64-bit reference, across the microsecond
+ * clock's wrap, with short steps (the 16-bit path) and long gaps (the division). */
+static void test_clock_ms_counts_on_across_the_microsecond_wrap(void)
+{
+    hal_clock_ms_t c;
+    uint32_t start_us = 0xFFFFFFFFu - 3000000u; /* 3 s before the wrap */
+    hal_clock_ms_start(&c, start_us);
+    uint64_t t = start_us; /* true microseconds, never wrapping */
+    uint32_t steps[] = {1u, 999u, 1000u, 1001u, 4321u, 65535u, 65536u, 70000u, 250000u, 1234567u};
+    for (uint32_t i = 0; i < 2000u; i++) {
+        t += steps[i % (sizeof steps / sizeof steps[0])];
+        uint32_t ms = hal_clock_ms_update(&c, (uint32_t)t);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)(t / 1000u), ms);
+    }
+    TEST_ASSERT_TRUE(t > 0x100000000ull + 100000000ull); /* well past the wrap */
 }
 
 static void test_sim_uart_round_trip_keeps_byte_order(void)
@@ -83,6 +102,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_sim_time_advances_and_wraps_at_32_bits);
+    RUN_TEST(test_clock_ms_counts_on_across_the_microsecond_wrap);
     RUN_TEST(test_sim_uart_round_trip_keeps_byte_order);
     RUN_TEST(test_sim_eeprom_starts_erased_and_keeps_writes);
     RUN_TEST(test_sim_encoder_edge_reaches_hook_with_time);

@@ -49,6 +49,26 @@ static void test_link_drive_setpoint_is_decoded_and_counts_as_heartbeat(void)
     TEST_ASSERT_EQUAL_UINT32(1234u, s->host_heartbeat_ms);
 }
 
+static void test_link_only_a_ground_stations_heartbeat_counts_as_the_host(void)
+{
+    /* another rover of the fleet, on the same radio net */
+    mavlink_msg_heartbeat_pack(2, 1, &s_msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC, 0, 0, 0);
+    send_to_robot(&s_msg);
+    link_poll(100u);
+    TEST_ASSERT_FALSE(link_state()->host_seen);
+    /* the host (a ground station) */
+    mavlink_msg_heartbeat_pack(HOST_SYS, HOST_COMP, &s_msg, MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, 0, 0, 0);
+    send_to_robot(&s_msg);
+    link_poll(200u);
+    TEST_ASSERT_TRUE(link_state()->host_seen);
+    TEST_ASSERT_EQUAL_UINT32(200u, link_state()->host_heartbeat_ms);
+    /* later rover heartbeats leave the host's time alone */
+    mavlink_msg_heartbeat_pack(2, 1, &s_msg, MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC, 0, 0, 0);
+    send_to_robot(&s_msg);
+    link_poll(900u);
+    TEST_ASSERT_EQUAL_UINT32(200u, link_state()->host_heartbeat_ms);
+}
+
 static void test_link_setpoint_for_another_robot_is_ignored(void)
 {
     mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, 7, 1, 100, 100, 0, 0, 0, 1);
@@ -164,6 +184,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_link_drive_setpoint_is_decoded_and_counts_as_heartbeat);
+    RUN_TEST(test_link_only_a_ground_stations_heartbeat_counts_as_the_host);
     RUN_TEST(test_link_setpoint_for_another_robot_is_ignored);
     RUN_TEST(test_link_bad_crc_is_counted_and_not_applied);
     RUN_TEST(test_link_estop_command_latches_and_is_acknowledged);

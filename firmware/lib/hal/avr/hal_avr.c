@@ -3,6 +3,7 @@
 
 #include "../hal.h"
 #include "board.h"
+#include "../hal_clock_ms.h"
 
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
@@ -45,30 +46,10 @@ static uint32_t ticks_now(void)
 }
 
 uint32_t hal_time_us(void) { return ticks_now() << 2; }
-/* hal_time_us() / 1000, exactly, from the last result: the control tick and the link task
- * ask every few ms, so the microseconds since then fit 16 bits and a short multiply replaces
- * libgcc's 32-bit division (~650 cycles a call). Loop side only (no ISR calls it). */
-static uint32_t s_ms_last;    /* the last result */
-static uint32_t s_ms_last_us; /* s_ms_last * 1000, never above the clock */
+/* Milliseconds counting on across the microsecond clock's 71-minute wrap (hal_clock_ms.h). */
+static hal_clock_ms_t s_clock_ms;
 
-__attribute__((noinline)) uint32_t hal_time_ms(void)
-{
-    uint32_t us = hal_time_us();
-    if (us < s_ms_last_us || us - s_ms_last_us > 0xFFFFu) { /* clock wrapped (71 min) or a long gap */
-        s_ms_last = us / 1000u;
-        s_ms_last_us = s_ms_last * 1000u;
-    }
-    /* d * 65 / 2^16 is d / 1000 or one less for any 16-bit d (65 / 2^16 is 0.8 % under 1 / 1000:
-     * at most 0.54 under); the remainder check adds the one. The >> 16 is a register move. */
-    uint16_t d_us = (uint16_t)(us - s_ms_last_us);
-    uint16_t q = (uint16_t)(((uint32_t)d_us * 65u) >> 16);
-    if ((uint16_t)(d_us - q * 1000u) >= 1000u) {
-        q++;
-    }
-    s_ms_last += q;
-    s_ms_last_us += (uint32_t)q * 1000u;
-    return s_ms_last;
-}
+__attribute__((noinline)) uint32_t hal_time_ms(void) { return hal_clock_ms_update(&s_clock_ms, hal_time_us()); }
 
 void hal_delay_us(uint16_t us)
 {

@@ -5,6 +5,7 @@
 #if (!defined(__AVR__) && !defined(__arm__)) || defined(PIO_UNIT_TESTING)
 
 #include "hal_sim.h"
+#include "../hal_clock_ms.h"
 
 #include <string.h>
 
@@ -18,6 +19,7 @@ typedef struct {
 
 static struct {
     uint32_t now_us;
+    hal_clock_ms_t clock_ms; /* hal_time_ms: counts on across now_us's wrap */
     hal_reset_cause_t reset_cause;
     hal_encoder_edge_fn encoder_fn;
     uint8_t encoder_count;
@@ -70,12 +72,16 @@ void sim_reset(void)
 
 void hal_init(void) { /* state is set by sim_reset() */ }
 uint32_t hal_time_us(void) { return sim.now_us; }
-uint32_t hal_time_ms(void) { return sim.now_us / 1000u; }
+uint32_t hal_time_ms(void) { return hal_clock_ms_update(&sim.clock_ms, sim.now_us); }
 void hal_delay_us(uint16_t us) { sim.now_us += us; }
 /* The world owns time in the simulation: idling is the caller's stepping, not ours. */
 void hal_idle_until(uint32_t t_us) { (void)t_us; }
 
-void sim_time_set_us(uint32_t t_us) { sim.now_us = t_us; }
+void sim_time_set_us(uint32_t t_us)
+{
+    sim.now_us = t_us;
+    hal_clock_ms_start(&sim.clock_ms, t_us); /* a set time is absolute: milliseconds restart from it */
+}
 void sim_time_advance_us(uint32_t dt_us) { sim.now_us += dt_us; }
 void sim_set_reset_cause(hal_reset_cause_t cause) { sim.reset_cause = cause; }
 
