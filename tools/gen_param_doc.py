@@ -43,8 +43,10 @@ def render() -> str:
            "are read from the firmware itself. Every row is a MAVLink parameter (MAVProxy `param show`,",
            "`agnav param list`), sent as MAV_PARAM_TYPE_INT32. `PARAM_SET` changes the value at once (out-of-range",
            "values are refused with a STATUSTEXT and the old value stays); `MAV_CMD_PREFLIGHT_STORAGE` (param1 = 1)",
-           "stores all of them in EEPROM; DRIVE_KIND, ENC_*, TRACK_MM, WHEELBASE_MM and SONAR_COUNT take effect at",
-           "the next boot. Keys are append-only.", "",
+           "stores all of them in EEPROM (param1 = 0 loads them back). The behaviour, health and manual-drive",
+           "limits take a changed value before the next control tick; SYSID_THISMAV, BHV_MODES (the layers enabled",
+           "at boot: MAV_CMD_AGNAV_SET_BEHAVIOURS changes them while running), DRIVE_KIND, ENC_*, TRACK_MM,",
+           "WHEELBASE_MM and SONAR_COUNT take effect at the next boot. Keys are append-only.", "",
            "| name | type | unit | min | max | default |", "|---|---|---|---:|---:|---:|"]
     with Firmware() as fw:
         for r in rows:

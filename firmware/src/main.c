@@ -169,10 +169,28 @@ static void on_calib(const mavlink_message_t *in)
     send(&msg);
 }
 
+static uint8_t s_param_changes; /* params_changes() when the modules last took the values */
+
+/* PARAM_SET and PREFLIGHT_STORAGE (load) change the variables of the PARAMS table; the modules that
+ * keep a copy or derive settings from them take the new values here, before the next control tick.
+ * The robot's build (DRIVE_KIND, ENC_*, TRACK_MM, WHEELBASE_MM, SONAR_COUNT), SYSID_THISMAV and
+ * BHV_MODES (the layers enabled at boot) wait for the next boot. */
+static void apply_params(void)
+{
+    if (params_changes() == s_param_changes) {
+        return;
+    }
+    s_param_changes = params_changes();
+    behaviour_set_params(&p_bhv);
+    health_set_params(&p_health);
+    link_set_manual_limits(p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s);
+}
+
 static void task_link(void)
 {
     signing_set_sign_telemetry(p_sign_telem != 0u); /* SIGN_TELEM applies at once */
     link_poll(hal_time_ms());
+    apply_params();
     link_state_t *ls = link_state();
     if (ls->arm_request) {
         ls->arm_request = false;
@@ -622,6 +640,7 @@ void agnav_setup(void)
     }
     behaviour_init(&p_bhv, s_ring);
     health_init(&p_health, p_enc_count);
+    s_param_changes = params_changes();
     drive_cfg_t dc = {p_drive_kind, p_track_mm, 0u, 0u};
     drive_init(&dc);
 

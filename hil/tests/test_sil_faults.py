@@ -90,6 +90,29 @@ def test_healthy_robot_drives_with_the_fault_free_host():
         assert health_values(h.msgs) and max(health_values(h.msgs)) == 0
 
 
+def test_param_set_over_the_link_applies_at_once():
+    """PARAM_SET while running reaches the layers in the next ticks (no reboot): a lower MAX_SPEED_MM_S caps
+    the host's 600 mm/s (500: above the calibration's dead band, so the car still drives); a longer HLTH_ENC_MS keeps a silent wheel from stopping the robot at the old 1 s."""
+    with Firmware() as fw:
+        h = Host(fw)
+        h.run(1_000_000)
+        assert last_status(h.msgs).speed_mm_s == 600
+        h.send(D.MAVLink_param_set_message(1, 1, b"MAX_SPEED_MM_S", 500.0, D.MAV_PARAM_TYPE_INT32))
+        msgs = h.run(300_000)
+        echo = [m for m in msgs if m.get_type() == "PARAM_VALUE" and m.param_id == "MAX_SPEED_MM_S"]
+        assert echo and echo[-1].param_value == 500.0, echo
+        assert last_status(msgs).speed_mm_s == 500, f"commanded {last_status(msgs).speed_mm_s} mm/s after the change"
+        # a wheel that stops counting: stuck after HLTH_ENC_MS of driving (default 1000 ms)
+        h.send(D.MAVLink_param_set_message(1, 1, b"HLTH_ENC_MS", 4000.0, D.MAV_PARAM_TYPE_INT32))
+        h.run(100_000)
+        h.wheel_edges = False
+        h.run(2_000_000)
+        assert driving(fw) and last_status(h.msgs).active_layer != D.AGNAV_LAYER_FAILSAFE, \
+            "the old 1 s stuck time stopped the robot"
+        h.run(2_500_000)
+        assert not driving(fw), "the new 4 s stuck time never fired"
+
+
 @pytest.mark.parametrize("mode,shift,word", [("timeout", 8, "never echoes"), ("zero", 20, "reads zero")])
 def test_sonar_fault_is_detected_reported_once_and_stops_until_armed(mode, shift, word):
     with Firmware() as fw:

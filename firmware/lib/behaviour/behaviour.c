@@ -216,12 +216,18 @@ void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ri
     for (uint16_t k = 0; k < sizeof b; k++) {
         z[k] = 0u;
     }
-    b.p = params != 0 ? *params : BEHAVIOUR_PARAMS_DEFAULT;
     b.ring = ring;
     b.n = (ring != 0 && ring->sensor != 0) ? ring->count : 0u;
     if (b.n > SONAR_RING_MAX) {
         b.n = SONAR_RING_MAX;
     }
+    behaviour_set_params(params);
+}
+
+void behaviour_set_params(const behaviour_params_t *params)
+{
+    b.p = params != 0 ? *params : BEHAVIOUR_PARAMS_DEFAULT;
+    const sonar_ring_cfg_t *ring = b.ring;
     for (uint8_t i = 0; i < b.n; i++) {
         int16_t br = (int16_t)behaviour_wrap_cdeg(ring->sensor[i].bearing_cdeg);
         int16_t c = behaviour_cos_q14(br);

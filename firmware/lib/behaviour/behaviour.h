@@ -157,6 +157,11 @@ typedef struct {
  * abstain). Per-sensor cos/sin are precomputed here from integer tables. */
 void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ring);
 
+/* New parameter values (PARAM_SET at run time): the layers use them from the next tick; what is
+ * derived from them (sensor classes, wall-follow thresholds) is recomputed, while the state (latches,
+ * timers, the active layer) is kept. NULL: the defaults. */
+void behaviour_set_params(const behaviour_params_t *params);
+
 /* One 50 Hz tick: evaluate the layers on *in, arbitrate, write *out. */
 void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out);
 

@@ -25,6 +25,8 @@ void health_init(const health_params_t *params, uint8_t enc_count)
     h.enc_n = enc_count > HEALTH_ENC_MAX ? HEALTH_ENC_MAX : enc_count;
 }
 
+void health_set_params(const health_params_t *params) { h.p = params != 0 ? *params : HEALTH_PARAMS_DEFAULT; }
+
 void health_encoders(uint32_t now_ms, bool driving, const uint16_t *count_lo, const uint16_t *edges_lo,
                      uint8_t ratio_faults)
 {

@@ -61,6 +61,9 @@ extern const health_params_t HEALTH_PARAMS_DEFAULT;
 /* Reset all state; params NULL -> defaults (copied). */
 void health_init(const health_params_t *params, uint8_t enc_count);
 
+/* New thresholds (PARAM_SET at run time), used from the next check; the counters are kept. */
+void health_set_params(const health_params_t *params);
+
 /* One control tick. driving: the drive output is not neutral. count_lo / edges_lo: the low
  * 16 bits of each wheel's count and edge total (encoder_snapshot_t); ratio_faults: bit i =
  * wheel i has ENCODER_F_ERROR_RATIO (encoder_faults()). */

@@ -312,6 +312,12 @@ static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
     send_param((uint16_t)idx); /* the current value either way, as the protocol asks */
 }
 
+void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s)
+{
+    s_cfg.manual_max_steer_cdeg = max_steer_cdeg;
+    s_cfg.manual_max_speed_mm_s = max_speed_mm_s;
+}
+
 static void handle(const mavlink_message_t *m, uint32_t now_ms)
 {
     s_state.rx_frames++;

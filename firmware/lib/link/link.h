@@ -113,6 +113,9 @@ typedef struct {
 } link_cfg_t;
 
 void link_init(const link_cfg_t *cfg);
+
+/* Full-stick steering and speed of manual control (MAX_STEER_CDEG / MAX_SPEED_MM_S changed at run time). */
+void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s);
 /* A received signed frame has waited more than one call because its hash did not fit before the
  * control tick: main's telemetry then skips its frame for a tick (never two ticks in a row) to
  * leave the link a longer window. */

@@ -64,8 +64,13 @@ int32_t params_get(uint16_t index)
     }
 }
 
+static uint8_t s_changes; /* stores so far (wraps): params_changes() */
+
+uint8_t params_changes(void) { return s_changes; }
+
 static void store(uint16_t index, int32_t value)
 {
+    s_changes++;
     void *v = s_table[index].value;
     switch (s_table[index].type) {
     case PARAM_U8:

@@ -195,6 +195,36 @@ void test_behaviour_link_loss_stops_by_timeout_plus_one_tick_not_before(void)
     TEST_ASSERT_EQUAL_INT16(200, out.speed_mm_s);
 }
 
+void test_behaviour_new_params_apply_at_once_and_keep_the_latches(void)
+{
+    in.estop = true;
+    tick(); /* latched */
+    in.estop = false;
+    behaviour_params_t p = BEHAVIOUR_PARAMS_DEFAULT;
+    p.max_speed_mm_s = 150;
+    p.link_timeout_ms = 2000u;
+    behaviour_set_params(&p);
+    in.now_ms += TICK_MS;
+    host_cmd(0, 400);
+    tick();
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_REASON_ESTOP, out.reason, "new parameters released the e-stop latch");
+    behaviour_arm();
+    in.now_ms += TICK_MS;
+    host_cmd(0, 400);
+    tick();
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
+    TEST_ASSERT_EQUAL_INT16_MESSAGE(150, out.speed_mm_s, "new MAX_SPEED_MM_S not applied");
+    /* the new link timeout: 1 s without anything is no link loss any more */
+    in.heartbeat_valid = false;
+    in.now_ms += 1000u;
+    host_cmd(0, 400);
+    in.host_rx_ms = in.now_ms - 1000u;
+    in.host_valid = true;
+    in.heartbeat_rx_ms = in.now_ms - 1000u;
+    tick();
+    TEST_ASSERT_FALSE_MESSAGE((out.failsafe_flags & BHV_FS_LINK_LOSS) != 0u, "old 500 ms link timeout still in force");
+}
+
 void test_behaviour_estop_stays_latched_until_armed(void)
 {
     in.estop = true;
@@ -550,6 +580,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_behaviour_step_highest_layer_wins_when_several_layers_command);
     RUN_TEST(test_behaviour_host_command_is_limited_to_max_speed_and_steer);
+    RUN_TEST(test_behaviour_new_params_apply_at_once_and_keep_the_latches);
     RUN_TEST(test_behaviour_manual_override_expires_after_manual_timeout);
     RUN_TEST(test_behaviour_link_loss_stops_by_timeout_plus_one_tick_not_before);
     RUN_TEST(test_behaviour_estop_stays_latched_until_armed);

@@ -43,6 +43,18 @@ static void test_health_encoder_stuck_latches_after_stuck_time_while_driving(voi
     TEST_ASSERT_EQUAL_HEX32(1UL << HEALTH_ENC_STUCK_SHIFT, health_bits());
 }
 
+static void test_health_new_stuck_time_applies_at_once(void)
+{
+    ticks(30, true, 0, 3, 0); /* 600 ms without a count on wheel 0 */
+    health_params_t longer = P;
+    longer.enc_stuck_ms = 3000u;
+    health_set_params(&longer);
+    ticks(40, true, 0, 3, 0); /* 1.4 s: past the old 1 s, short of the new 3 s */
+    TEST_ASSERT_FALSE_MESSAGE(health_encoder_fault(), "old HLTH_ENC_MS still in force");
+    ticks(85, true, 0, 3, 0); /* 3.1 s: the silence kept counting through the change */
+    TEST_ASSERT_TRUE(health_encoder_fault());
+}
+
 static void test_health_encoder_silent_while_not_driving_is_fine(void)
 {
     ticks(200, false, 0, 0, 0);
@@ -189,6 +201,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_health_encoder_stuck_latches_after_stuck_time_while_driving);
+    RUN_TEST(test_health_new_stuck_time_applies_at_once);
     RUN_TEST(test_health_encoder_silent_while_not_driving_is_fine);
     RUN_TEST(test_health_encoder_counting_wheel_is_never_stuck);
     RUN_TEST(test_health_encoder_silence_restarts_when_driving_stops);

@@ -67,6 +67,21 @@ static void test_params_set_refuses_out_of_range_and_keeps_old_value(void)
     TEST_ASSERT_EQUAL(PARAMS_UNKNOWN, params_set(3u, 0));
 }
 
+static void test_params_changes_moves_on_every_stored_value_only(void)
+{
+    uint8_t c0 = params_changes();
+    TEST_ASSERT_EQUAL(PARAMS_OUT_OF_RANGE, params_set(1u, 501));
+    TEST_ASSERT_EQUAL(PARAMS_UNKNOWN, params_set(3u, 0));
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(c0, params_changes(), "a refused value counted as a change");
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_set(1u, 10));
+    uint8_t c1 = params_changes();
+    TEST_ASSERT_TRUE(c1 != c0);
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(c1, params_changes(), "saving is not a change");
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
+    TEST_ASSERT_TRUE_MESSAGE(params_changes() != c1, "a load (PREFLIGHT_STORAGE) must count as a change");
+}
+
 static void test_params_save_then_load_round_trips(void)
 {
     params_set(0u, 750);
@@ -155,6 +170,7 @@ int main(void)
     RUN_TEST(test_params_signed_byte_round_trips_negative_values);
     RUN_TEST(test_params_find_by_name_without_terminator);
     RUN_TEST(test_params_set_refuses_out_of_range_and_keeps_old_value);
+    RUN_TEST(test_params_changes_moves_on_every_stored_value_only);
     RUN_TEST(test_params_save_then_load_round_trips);
     RUN_TEST(test_params_load_keeps_defaults_on_corruption);
     RUN_TEST(test_params_load_keeps_defaults_when_erased);
