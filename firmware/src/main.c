@@ -369,8 +369,14 @@ static void task_control(void)
         drive_apply(s_out.steer_cdeg, s_out.speed_mm_s);
     }
     if (p_enc_mode == ENCODER_MODE_HALL) { /* the hint only signs Hall pulses */
+        const drive_output_t *o = drive_output();
         for (uint8_t i = 0; i < p_enc_count; i++) {
-            encoder_set_direction_hint(i, drive_output()->direction);
+            int8_t hint = o->direction;
+            if (p_drive_kind == DRIVE_DIFFERENTIAL && !raw) { /* per side: a turn on the spot spins them apart */
+                int16_t side = (i & 1u) != 0u ? o->right_mm_s : o->left_mm_s; /* wheels 0, 2 left; 1, 3 right */
+                hint = side > 0 ? 1 : side < 0 ? -1 : 0; /* 0: keeps the last sign while stopping */
+            }
+            encoder_set_direction_hint(i, hint);
         }
     }
     s_out_ms = now_ms;

@@ -30,9 +30,11 @@ class Host:
         self.fw = fw
         self.mav = D.MAVLink(None, srcSystem=HOST[0], srcComponent=HOST[1])
         self.speed = speed_mm_s
+        self.steer = 0  # cdeg
         self.seq = 0
         self.msgs: list = []
         self.wheel_edges = True  # the wheel turns: without counts the health monitor stops the robot
+        self.wheels = 1  # encoders that get those edges
         self.echo_us = {i: 11_662 for i in range(12)}  # 2000 mm everywhere
 
     def send(self, msg) -> None:
@@ -49,11 +51,12 @@ class Host:
             t = min(end, self.fw.time_us + 50_000)
             self.seq += 1
             self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
-            self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, 0, self.speed, 0, 0, D.AGNAV_DRIVE_PHYSICAL,
+            self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, self.steer, self.speed, 0, 0, D.AGNAV_DRIVE_PHYSICAL,
                                                              self.seq & 0xFFFF))
             if self.wheel_edges:  # a turning wheel: A/B in quadrature order (Hall mode counts A's rises)
                 t0 = self.fw.time_us + 1_000
-                self.fw.queue_encoder_edges(0, [t0 + k * 2_500 for k in range(20)], [0b10, 0b11, 0b01, 0b00] * 5)
+                for w in range(self.wheels):
+                    self.fw.queue_encoder_edges(w, [t0 + k * 2_500 for k in range(20)], [0b10, 0b11, 0b01, 0b00] * 5)
             while self.fw.time_us < t:
                 self.fw.step_to(t)
                 for idx, tt in self.fw.take_triggers():
@@ -88,6 +91,20 @@ def test_healthy_robot_drives_with_the_fault_free_host():
         h.run(1_500_000)
         assert driving(fw), f"throttle {fw.outputs().throttle_us} us: the baseline must drive"
         assert health_values(h.msgs) and max(health_values(h.msgs)) == 0
+
+
+def test_hall_wheels_of_a_differential_robot_turning_on_the_spot_count_their_own_way():
+    """Hall pulses carry no direction: the firmware signs them with the side's commanded direction. Turning on the
+    spot (steer 30 deg at 80 mm/s: the drive spins the sides opposite ways) the left wheel counts backwards."""
+    with Firmware(params={"DRIVE_KIND": 1, "ENC_COUNT": 2, "ENC_MODE": 1}) as fw:
+        h = Host(fw, speed_mm_s=80)
+        h.steer = 3000
+        h.wheels = 2
+        msgs = h.run(1_500_000)
+        enc = [m for m in msgs if m.get_type() == "AGNAV_ENCODER_STATUS"]
+        assert enc, "no AGNAV_ENCODER_STATUS"
+        c = enc[-1].count
+        assert c[0] < -20 and c[1] > 20, f"Hall counts left {c[0]}, right {c[1]}: the sides turn opposite ways"
 
 
 def test_param_set_over_the_link_applies_at_once():
