@@ -442,9 +442,10 @@ class Endpoint:
         first_try: float | None = None
         while not self._stop.is_set():
             now = time.monotonic()
-            if now - self._last_budget_check >= 0.5:  # rates and silence, transport open or not
+            if now - self._last_budget_check >= 0.5:  # rates, transport open or not
                 self._last_budget_check = now
                 self._check_rates(now)
+            self._check_silence(now)  # every pass: a loss is reported within link_timeout_s + ~0.05 s
             if self._conn is None:
                 if now < self._next_open:
                     self._stop.wait(min(0.05, self._next_open - now))
@@ -529,6 +530,8 @@ class Endpoint:
         if tl is not None and tl.error is not None and not self._tlog_error_reported:
             self._tlog_error_reported = True  # the link goes on; the log keeps what was written before
             self._event(f"telemetry log stopped: {tl.error} ({tl.frames} frames kept)", logging.ERROR)
+
+    def _check_silence(self, now: float) -> None:
         if self.stats.link_up and self._last_rx is not None and now - self._last_rx > self.link_timeout_s:
             self.stats.link_up = False
             self.stats.link_losses += 1
