@@ -263,6 +263,10 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     except ScenarioError as e:
         print(f"agnav sim: {e}", file=sys.stderr)
         return 2
+    missing = _missing_sensor(sc, ns.planner)
+    if missing:
+        print(f"agnav sim: {missing}", file=sys.stderr)
+        return 2
     if ns.planner != "goal_seek":
         from .sim.runner import _make_controller
 
@@ -313,6 +317,29 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _missing_sensor(sc: Any, planner: str) -> str | None:
+    """Why the host planner in ``planner`` (``NAME`` or ``NAME+ground-guard``) cannot run on scenario ``sc``: a
+    sensor it needs at every step that the scenario does not have; None when nothing is missing (or the name
+    is not a registry planner: the field controllers check their own sensors)."""
+    from .planning.base import UnknownPlanner
+    from .planning.registry import canonical_name, planner_names, sensors_needed
+
+    base = planner.split("+", 1)[0]
+    try:
+        needs = sensors_needed(canonical_name(base))
+    except UnknownPlanner:
+        return None
+    have = {"laser": getattr(sc, "laser", None) is not None, "sonar": getattr(sc, "sonar", None) is not None}
+    lacking = [s for s in needs if not have.get(s, True)]
+    if not lacking:
+        return None
+    what = " and a ".join(f"[{s}]" for s in lacking)
+    extra = " (a [tilted_laser] looks at the ground, not ahead)" if "laser" in lacking and getattr(sc, "tilted_laser", None) else ""
+    usable = [n for n in planner_names() if all(have.get(s, True) for s in sensors_needed(n))]
+    return (f"planner {planner!r} needs a {what} in the scenario; {sc.name!r} has none{extra}; planners that run "
+            f"on it: {', '.join(usable + ['goal_seek'])}")
 
 
 def _unusable_out_dir(out: str) -> str | None:

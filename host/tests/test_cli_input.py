@@ -84,3 +84,17 @@ def test_number_types():
     assert byte("0x10") == 16
     with pytest.raises(argparse.ArgumentTypeError, match=r"must be 0\.\.255, got '256'"):
         byte("256")
+
+
+@pytest.mark.parametrize("scenario, planner, needs", [
+    ("crop_rows", "subsumption", "[sonar]"),  # no sonar ring in that field
+    ("fault_yard", "him", "[laser]"),  # sonar only
+    ("ruts", "vfh+ground-guard", "[laser]"),  # a tilted laser only
+])
+def test_sim_refuses_a_planner_whose_sensor_the_scenario_lacks(tmp_path, capsys, scenario, planner, needs):
+    """Before the run (it used to stop at the first step with an InvalidObservation traceback)."""
+    assert main(["sim", scenario, "--planner", planner, "--out", str(tmp_path), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"planner {planner!r} needs a {needs}" in err and "Traceback" not in err
+    assert "planners that run on it:" in err and "goal_seek" in err
+    assert not (tmp_path / "summary.json").exists()

@@ -109,3 +109,16 @@ def test_follow_path_planner_uses_a_given_path():
     for k in range(10):
         cmd = p.step(obs)
     assert cmd.speed_m_s > 0.0 and abs(cmd.yaw_rate_rad_s) < 0.2  # along the first leg, not at the goal
+
+
+def test_follow_path_planner_replanning_on_the_goal_spot_keeps_going():
+    """A replan while the robot stands on the goal (start and goal one point) used to raise NoPathFound
+    mid-run ("a path needs two distinct points") and end the simulation with a traceback."""
+    p = make_planner("follow-path", RobotSpec())
+    obs = obs_with(empty_scan(), (2.0, 0.0))
+    p.step(obs)  # first plan: a path to (2, 0)
+    assert len(p.follower.path) >= 2
+    at_goal = obs_with(empty_scan(), (0.0, 0.0))  # the goal where the robot stands
+    for _ in range(40):  # past the replanning period
+        cmd = p.step(at_goal)
+    assert math.isfinite(cmd.speed_m_s) and math.isfinite(cmd.yaw_rate_rad_s)

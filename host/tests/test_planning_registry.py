@@ -68,3 +68,29 @@ def test_every_planner_reaches_the_goal_on_corridor_obstacles(name):
     end = r.trajectory[-1]
     assert r.end_reason == "arrived", f"{name}: {r.end_reason} at ({end[1]:.2f}, {end[2]:.2f}) after {r.metrics.time_s:.1f} s"
     assert r.metrics.min_clearance_m > 0.0
+
+
+@pytest.mark.parametrize("name", planner_names())
+def test_declared_sensors_are_what_a_step_needs(name):
+    """sensors_needed() (used to refuse a run before it starts) matches what each planner's step() does:
+    without a scan a laser planner raises InvalidObservation, and so does a sonar planner without a frame."""
+    import numpy as np
+
+    from agnav_host.planning.base import InvalidObservation
+    from agnav_host.planning.registry import sensors_needed
+    from agnav_host.types import Goal, Observation, Pose2D
+
+    from _planning_helpers import empty_scan, sonar_frame
+
+    def fails(scan, sonar) -> bool:
+        p = make_planner(name, RobotSpec())
+        p.reset()
+        try:
+            p.step(Observation(0.0, Pose2D(), 0.0, 0.0, Goal(5.0, 0.0), scan, sonar, {}))
+        except InvalidObservation:
+            return True
+        return False
+
+    needs = sensors_needed(name)
+    assert fails(None, sonar_frame(np.full(12, 3.0))) == ("laser" in needs)
+    assert fails(empty_scan(), None) == ("sonar" in needs)

@@ -252,25 +252,10 @@ def _status_line(ep: Any, t: float) -> str:
 
 def planner_needs_laser(name: str) -> bool:
     """True when host planner ``name`` cannot take a step without a laser scan, which `agnav run`
-    never has (the robot reports odometry and its sonar ring): one probe step on a scan-less
-    observation, before anything touches the robot."""
-    import numpy as np
+    never has (the robot reports odometry and its sonar ring)."""
+    from ..planning.registry import sensors_needed
 
-    from ..planning.base import InvalidObservation, RobotSpec
-    from ..planning.registry import make_planner
-    from ..types import Goal, Observation, Pose2D, SonarFrame
-
-    n = 12
-    sonar = SonarFrame(0.0, np.ones(n, dtype=bool), np.full(n, np.nan), np.full(n, np.nan))
-    try:
-        planner = make_planner(name, RobotSpec())
-        planner.reset()
-        planner.step(Observation(0.0, Pose2D(), 0.0, 0.0, Goal(5.0, 0.0), sonar=sonar))
-    except InvalidObservation as e:
-        return "laser" in str(e)
-    except Exception:  # anything else shows up (with its own message) in the run itself
-        return False
-    return False
+    return "laser" in sensors_needed(name)
 
 
 def _plain(e: BaseException) -> str:

@@ -190,7 +190,10 @@ class FollowPathPlanner:
             if len(self.follower.path) >= 2 and float(np.hypot(*(self.follower.path[-1] - goal))) < 1e-6:
                 return  # keep following the old path to this goal
             path = np.array([start, goal])
-        self.follower.set_path(path, keep_speed=True)
+        try:
+            self.follower.set_path(path, keep_speed=True)
+        except NoPathFound:  # start and goal on the same spot (at the goal): keep what is being followed
+            self.plan_failures += 1
 
     def step(self, obs: Observation) -> DriveCommand:
         spec, p = self.spec, self.params

@@ -14,7 +14,7 @@ from typing import Any
 
 from .base import Planner, RobotSpec, UnknownPlanner
 
-__all__ = ["PLANNERS", "PlannerEntry", "planner_names", "make_planner", "canonical_name", "describe"]
+__all__ = ["PLANNERS", "PlannerEntry", "planner_names", "make_planner", "canonical_name", "describe", "sensors_needed"]
 
 
 @dataclass(frozen=True)
@@ -22,15 +22,16 @@ class PlannerEntry:
     module: str  # relative to agnav_host.planning
     cls: str
     summary: str
+    sensors: tuple[str, ...] = ()  # what every step needs: "laser" (obs.scan), "sonar" (obs.sonar)
 
 
 PLANNERS: dict[str, PlannerEntry] = {
-    "flb": PlannerEntry("flb", "FlbPlanner", "fuzzy-logic planner, 3 laser sectors, 27 rules, CLA defuzzification (ref 000)"),
-    "him": PlannerEntry("him", "HimPlanner", "human-inspired method: direct path or best escape point, D = L + P (ref 000)"),
-    "vfh": PlannerEntry("vfh", "VfhPlanner", "vector field histogram: polar histogram, valleys, steer to the best valley"),
-    "pbf": PlannerEntry("pbf", "PbfPlanner", "potential-field planner: attractive goal, repulsive laser points"),
-    "apf": PlannerEntry("apf", "ApfPlanner", "APF waypoint controller with passive motion safety (ref 001)"),
-    "subsumption": PlannerEntry("subsumption", "SubsumptionPlanner", "sonar-ring subsumption, mirror of firmware behaviour.c (ref 002)"),
+    "flb": PlannerEntry("flb", "FlbPlanner", "fuzzy-logic planner, 3 laser sectors, 27 rules, CLA defuzzification (ref 000)", ("laser",)),
+    "him": PlannerEntry("him", "HimPlanner", "human-inspired method: direct path or best escape point, D = L + P (ref 000)", ("laser",)),
+    "vfh": PlannerEntry("vfh", "VfhPlanner", "vector field histogram: polar histogram, valleys, steer to the best valley", ("laser",)),
+    "pbf": PlannerEntry("pbf", "PbfPlanner", "potential-field planner: attractive goal, repulsive laser points", ("laser",)),
+    "apf": PlannerEntry("apf", "ApfPlanner", "APF waypoint controller with passive motion safety (ref 001)", ("laser",)),
+    "subsumption": PlannerEntry("subsumption", "SubsumptionPlanner", "sonar-ring subsumption, mirror of firmware behaviour.c (ref 002)", ("sonar",)),
     "follow-path": PlannerEntry("follow_path", "FollowPathPlanner", "path following controller (ref 000) on a grid-planned or given path"),
     "timed": PlannerEntry("timed.planner", "TimedPlanner", "time-critical planner: arrive at a set pose at a set time, replan to keep it (ref 003)"),
 }
@@ -49,6 +50,12 @@ def canonical_name(name: str) -> str:
     if n not in PLANNERS:
         raise UnknownPlanner(f"unknown planner {name!r}; known: {', '.join(PLANNERS)}")
     return n
+
+
+def sensors_needed(name: str) -> tuple[str, ...]:
+    """The sensors planner ``name`` needs at every step ("laser", "sonar"), so that a run without them is
+    refused before it starts rather than stopped at its first step."""
+    return PLANNERS[canonical_name(name)].sensors
 
 
 def describe() -> dict[str, str]:

@@ -128,7 +128,10 @@ def make_field_controller(sc: Scenario, name: str, make_other: Callable[[Scenari
     (a host planner, the stand-in) for ``+ground-guard``."""
     base, guard = _split_guard(name)
     b = _canonical(base)
-    inner = _base_controller(sc, b) if b in FIELD_CONTROLLERS else make_other(sc, base)
+    try:
+        inner = _base_controller(sc, b) if b in FIELD_CONTROLLERS else make_other(sc, base)
+    except FieldControllerError as e:  # name what was asked for: 'rut-follower+ground-guard', not 'rut-follower'
+        raise FieldControllerError(str(e).replace(repr(b), repr(name), 1)) from None
     if not guard:
         return inner
     from ..perception import GroundGuard, GroundGuardParams
