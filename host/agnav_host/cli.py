@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 __all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "NEGATIVE_VALUE_OPTIONS", "build_parser",
-           "finite_float", "positive_float", "nonneg_float", "positive_int", "nonneg_int", "int_in"]
+           "finite_float", "positive_float", "nonneg_float", "positive_int", "nonneg_int", "int_in", "unusable_out_dir"]
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -275,7 +275,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         except ValueError as e:
             print(f"agnav sim: {e}", file=sys.stderr)
             return 2
-    bad_out = _unusable_out_dir(ns.out)
+    bad_out = unusable_out_dir(ns.out)
     if bad_out:
         print(f"agnav sim: --out {ns.out}: {bad_out}", file=sys.stderr)
         return 2
@@ -342,7 +342,7 @@ def _missing_sensor(sc: Any, planner: str) -> str | None:
             f"on it: {', '.join(usable + ['goal_seek'])}")
 
 
-def _unusable_out_dir(out: str) -> str | None:
+def unusable_out_dir(out: str) -> str | None:
     """Why ``out`` cannot be the output folder (a file, or a folder that cannot be made), or None; made here,
     before a long run, so that the run is not lost to a typo."""
     from pathlib import Path

@@ -13,10 +13,9 @@ import numpy as np
 import pytest
 
 from agnav_host.cli import build_parser, main
-from agnav_host.scanio import ScanFileError, load_scan_csv, save_scan_csv
-from agnav_host.sim.sensors import Laser2D, laser_preset
-from agnav_host.sim.world import World, plants_along
-from agnav_host.types import Pose2D
+from agnav_host.scanio import ScanFileError, load_scan_csv
+
+from _scan_files import four_rows_scan_csv
 
 PLAN = ["plan", "--start", "0,0,0", "--goal", "5,0,0"]
 
@@ -132,12 +131,7 @@ def test_plan_samples_text_says_arrival_and_rest(capsys):
 
 @pytest.fixture(scope="module")
 def rows_scan(tmp_path_factory) -> Path:
-    rng = np.random.default_rng(1)
-    w = World()
-    for y in (-1.125, -0.375, 0.375, 1.125):
-        w.add_circles(plants_along(np.array([[-3.0, y], [8.0, y]]), 0.15, 0.05, rng, 3, 0.015))
-    scan = Laser2D(laser_preset("tim310")).scan(w, Pose2D(0.0, 0.08, -0.1), 0.0, np.random.default_rng(0))
-    return save_scan_csv(scan, tmp_path_factory.mktemp("scan") / "rows.csv")
+    return four_rows_scan_csv(tmp_path_factory.mktemp("scan"))
 
 
 def _write(path: Path, angles, ranges, meta: str = "") -> Path:

@@ -15,18 +15,14 @@ from agnav_host.sim.sensors import Laser2D, laser_preset
 from agnav_host.sim.world import World, plants_along
 from agnav_host.types import Pose2D
 
+from _scan_files import four_rows_scan_csv
+
 KEYS = {"lateral_offset_m", "heading_rad", "row_spacing_m", "confidence", "end_of_row"}
 
 
 @pytest.fixture(scope="module")
 def scan_file(tmp_path_factory):
-    rng = np.random.default_rng(1)
-    w = World()
-    for y in (-1.125, -0.375, 0.375, 1.125):
-        w.add_circles(plants_along(np.array([[-3.0, y], [8.0, y]]), 0.15, 0.05, rng, 3, 0.015))
-    # robot 0.08 m left of the centre line, heading 0.1 rad clockwise (negative); laser at the reference point
-    scan = Laser2D(laser_preset("tim310")).scan(w, Pose2D(0.0, 0.08, -0.1), 0.0, np.random.default_rng(0))
-    return save_scan_csv(scan, tmp_path_factory.mktemp("scan") / "rows.csv")
+    return four_rows_scan_csv(tmp_path_factory.mktemp("scan"))
 
 
 @pytest.mark.parametrize("method", ["offset", "lsq", "triangle", "ransac", "hough"])

@@ -9,9 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-from ..cli import positive_int, subcommand
+from ..cli import positive_int, subcommand, unusable_out_dir
 
 __all__: list[str] = []
 
@@ -82,7 +81,7 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     if not suite:
         print("agnav bench: nothing to run", file=sys.stderr)
         return 2
-    bad_out = _unusable_out_dir(ns.out)
+    bad_out = unusable_out_dir(ns.out)
     if bad_out:  # before the run, so that a long run is not lost to a typo
         print(f"agnav bench: --out {ns.out}: {bad_out}", file=sys.stderr)
         return 1
@@ -100,16 +99,3 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
         return _report_write_failure("bench", ns.out, e)
     print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {ns.out}")
     return 0
-
-
-def _unusable_out_dir(out: str) -> str | None:
-    """Why ``out`` cannot be the output folder (a file, or a folder that cannot be made), or None; the
-    folder is made here."""
-    p = Path(out)
-    if p.exists() and not p.is_dir():
-        return "is a file, not a folder"
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        return f"cannot create the folder: {e.strerror or e}"
-    return None
