@@ -144,6 +144,9 @@ static void on_calib(const mavlink_message_t *in)
         mavlink_msg_agnav_calib_table_decode(in, &m);
         id = m.table_id;
         result = link_calib_from_msg(&m, &t);
+        if (result == 0u && !drive_table_fits(id, &t)) {
+            result = AGNAV_CALIB_OUT_OF_RANGE; /* e.g. a table in servo microseconds: this stage takes 0..255 */
+        }
         if (result == 0u) {
             result = link_calib_result(calib_set_table(id, &t));
         }

@@ -107,6 +107,25 @@ def test_hall_wheels_of_a_differential_robot_turning_on_the_spot_count_their_own
         assert c[0] < -20 and c[1] > 20, f"Hall counts left {c[0]}, right {c[1]}: the sides turn opposite ways"
 
 
+def test_calibration_table_the_output_stage_cannot_drive_is_refused():
+    """A speed table in servo microseconds passes the calibration module's checks (0..3000) but would drive this
+    firmware's byte-wide output stage at full throttle: refused with OUT_OF_RANGE, the active table kept."""
+    with Firmware() as fw:
+        h = Host(fw)
+        h.run(500_000)
+        pwm = [1550, 1700] + [0] * 14
+        val = [400, 2000] + [0] * 14
+        h.send(D.MAVLink_agnav_calib_table_message(1, 1, D.AGNAV_CALIB_SPEED, 2, pwm, val, 1500, 1500, 1550))
+        msgs = h.run(200_000)
+        acks = [m for m in msgs if m.get_type() == "AGNAV_CALIB_ACK"]
+        assert acks and acks[-1].result == D.AGNAV_CALIB_OUT_OF_RANGE, acks
+        assert driving(fw) and last_status(msgs).speed_mm_s == 600, "the old table must stay in force"
+        ok_pwm = [33, 109] + [0] * 14  # the same table in command bytes is taken
+        h.send(D.MAVLink_agnav_calib_table_message(1, 1, D.AGNAV_CALIB_SPEED, 2, ok_pwm, val, 0, 0, 33))
+        msgs = h.run(200_000)
+        assert [m.result for m in msgs if m.get_type() == "AGNAV_CALIB_ACK"][-1] == D.AGNAV_CALIB_ACCEPTED
+
+
 def test_param_set_over_the_link_applies_at_once():
     """PARAM_SET while running reaches the layers in the next ticks (no reboot): a lower MAX_SPEED_MM_S caps
     the host's 600 mm/s (500: above the calibration's dead band, so the car still drives); a longer HLTH_ENC_MS keeps a silent wheel from stopping the robot at the old 1 s."""

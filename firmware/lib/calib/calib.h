@@ -77,7 +77,7 @@ typedef struct {
     calib_point_t pt[CALIB_MAX_POINTS];
 } calib_side_t;
 
-typedef struct {
+typedef struct calib_table_s {
     uint16_t neutral_pwm; /* command giving value 0 */
     calib_side_t pos;     /* values >= 0: left turn / forward */
     calib_side_t neg;     /* values <= 0: right turn / reverse */

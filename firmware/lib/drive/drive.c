@@ -114,3 +114,21 @@ void drive_stop(void)
 }
 
 const drive_output_t *drive_output(void) { return &s_out; }
+
+static bool side_fits(const calib_side_t *s)
+{
+    for (uint8_t i = 0; i < s->n && i < CALIB_MAX_POINTS; i++) {
+        if (s->pt[i].pwm > 255u) {
+            return false;
+        }
+    }
+    return true;
+}
+
+bool drive_table_fits(uint8_t id, const calib_table_t *t)
+{
+    if (t->neutral_pwm > 255u || (id != (uint8_t)CALIB_STEER && t->neutral_pwm != 0u)) {
+        return false;
+    }
+    return side_fits(&t->pos) && side_fits(&t->neg);
+}

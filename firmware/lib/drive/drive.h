@@ -22,6 +22,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+struct calib_table_s; /* calib.h */
+
 typedef enum { DRIVE_ACKERMANN = 0, DRIVE_DIFFERENTIAL = 1 } drive_kind_t;
 
 typedef struct {
@@ -50,6 +52,12 @@ void drive_apply_raw(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir);
 /* Neutral outputs: centred steering, zero throttle / duty. */
 void drive_stop(void);
 const drive_output_t *drive_output(void);
+
+/* Whether this output stage can drive table ``id`` (calib.h ids) as given: its pwm column is the 0..255
+ * command byte (the calibration module accepts 0..3000 for other stages: a table in servo microseconds
+ * would saturate to full throttle / full lock here), and a speed table is sign-magnitude (neutral 0: the
+ * direction comes from the sign, so a non-zero neutral would be a creep at "stop"). */
+bool drive_table_fits(uint8_t id, const struct calib_table_s *t);
 
 uint16_t drive_servo_us_from_byte(uint16_t byte);
 uint16_t drive_esc_us_from_byte(uint16_t byte, int8_t dir);

@@ -21,6 +21,26 @@ void setUp(void)
 
 void tearDown(void) {}
 
+static void test_drive_takes_only_byte_tables_and_sign_magnitude_speed(void)
+{
+    calib_table_t t;
+    TEST_ASSERT_TRUE(calib_get_default(CALIB_STEER, &t));
+    TEST_ASSERT_TRUE_MESSAGE(drive_table_fits(CALIB_STEER, &t), "the default steering table");
+    TEST_ASSERT_TRUE(calib_get_default(CALIB_SPEED, &t));
+    TEST_ASSERT_TRUE_MESSAGE(drive_table_fits(CALIB_SPEED, &t), "the default speed table");
+    /* a speed table in servo microseconds: valid for calib, full throttle for this stage */
+    calib_table_t us = {1500u, {2u, {{1550u, 400}, {1700u, 2000}}}, {0u, {{0u, 0}}}};
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_validate(CALIB_SPEED, &us));
+    TEST_ASSERT_FALSE(drive_table_fits(CALIB_SPEED, &us));
+    /* bytes, but a non-zero neutral on a speed table: a creep at "stop" */
+    calib_table_t creep = {20u, {2u, {{33u, 446}, {109u, 1995}}}, {0u, {{0u, 0}}}};
+    TEST_ASSERT_FALSE(drive_table_fits(CALIB_SPEED_RIGHT, &creep));
+    /* steering: neutral anywhere in 0..255, no point above 255 */
+    TEST_ASSERT_TRUE(calib_get_default(CALIB_STEER, &t));
+    t.pos.pt[t.pos.n - 1u].pwm = 256u;
+    TEST_ASSERT_FALSE(drive_table_fits(CALIB_STEER, &t));
+}
+
 static void test_drive_byte_to_servo_pulse_spans_1000_to_2000_us(void)
 {
     TEST_ASSERT_EQUAL_UINT16(1000u, drive_servo_us_from_byte(0u));
@@ -111,6 +131,7 @@ static void test_drive_raw_mode_passes_table_units_through(void)
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_drive_takes_only_byte_tables_and_sign_magnitude_speed);
     RUN_TEST(test_drive_byte_to_servo_pulse_spans_1000_to_2000_us);
     RUN_TEST(test_drive_esc_pulse_is_signed_around_1500_us);
     RUN_TEST(test_drive_stop_centres_steering_and_neutral_throttle);
