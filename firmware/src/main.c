@@ -31,6 +31,7 @@ static uint8_t p_sysid;
 static uint8_t p_drive_kind;    /* drive_kind_t: 0 Ackermann (ref 003 car), 1 differential */
 static uint8_t p_enc_count;     /* wheels with an encoder, 1..4 */
 static uint8_t p_enc_mode;      /* encoder_mode_t: 0 quadrature x4, 1 Hall */
+static uint8_t p_enc_invert;    /* bit i: encoder i counts the other way (a wheel mounted mirrored) */
 static int32_t p_enc_nm_per_count;
 static uint16_t p_track_mm;
 static uint16_t p_wheelbase_mm;
@@ -83,6 +84,7 @@ static const PARAMS_ROM param_def_t PARAMS[] = {
     {"HLTH_SONAR_FR", PARAM_U8, &p_health.sonar_fault_frames, 0, 50},
     {"HLTH_ZERO_FR", PARAM_U8, &p_health.sonar_zero_frames, 0, 100},
     {"SIGN_TELEM", PARAM_U8, &p_sign_telem, 0, 1},
+    {"ENC_INVERT", PARAM_U8, &p_enc_invert, 0, 15},
 };
 #define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
 
@@ -109,6 +111,7 @@ static void defaults(void)
     p_drive_kind = AGNAV_DEFAULT_DRIVE_KIND;
     p_enc_count = AGNAV_DEFAULT_ENC_COUNT;
     p_enc_mode = AGNAV_DEFAULT_ENC_MODE;
+    p_enc_invert = 0u;
     p_enc_nm_per_count = AGNAV_DEFAULT_ENC_NM_PER_CNT;
     p_track_mm = 191u;
     p_wheelbase_mm = 174u;          /* ref 003 car */
@@ -638,6 +641,7 @@ void agnav_setup(void)
     memset(enc, 0, sizeof enc);
     for (uint8_t i = 0; i < p_enc_count; i++) {
         enc[i].mode = p_enc_mode;
+        enc[i].invert = (uint8_t)((p_enc_invert >> i) & 1u);
         enc[i].travel_per_count_nm = (uint32_t)p_enc_nm_per_count;
     }
     encoder_init(p_enc_count, enc);

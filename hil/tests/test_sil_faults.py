@@ -107,6 +107,18 @@ def test_hall_wheels_of_a_differential_robot_turning_on_the_spot_count_their_own
         assert c[0] < -20 and c[1] > 20, f"Hall counts left {c[0]}, right {c[1]}: the sides turn opposite ways"
 
 
+@pytest.mark.parametrize("invert", [0, 1])
+def test_enc_invert_turns_a_mirrored_wheel_the_right_way(invert):
+    """ENC_INVERT bit i swaps encoder i's counting direction (a wheel mounted mirrored)."""
+    with Firmware(params={"ENC_INVERT": invert}) as fw:
+        h = Host(fw)
+        msgs = h.run(1_000_000)
+        enc = [m for m in msgs if m.get_type() == "AGNAV_ENCODER_STATUS"]
+        assert enc, "no AGNAV_ENCODER_STATUS"
+        c = enc[-1].count[0]
+        assert (c < -20) if invert else (c > 20), f"wheel 0 counted {c} with ENC_INVERT {invert}"
+
+
 def test_calibration_table_the_output_stage_cannot_drive_is_refused():
     """A speed table in servo microseconds passes the calibration module's checks (0..3000) but would drive this
     firmware's byte-wide output stage at full throttle: refused with OUT_OF_RANGE, the active table kept."""
