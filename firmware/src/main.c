@@ -340,6 +340,9 @@ static void task_control(void)
     in->now_ms = now_ms;
     in->host_steer_cdeg = ls->setpoint.steer_cdeg;
     in->host_speed_mm_s = ls->setpoint.speed_mm_s;
+    if (ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM && ls->setpoint.speed_pwm != 0u && ls->setpoint.speed_mm_s == 0) {
+        in->host_speed_mm_s = 1; /* raw forward (calibration): the avoid layer must see it before the wheels do */
+    }
     in->host_rx_ms = ls->setpoint.rx_ms;
     in->host_valid = ls->setpoint.valid;
     in->heartbeat_rx_ms = ls->host_heartbeat_ms;

@@ -31,6 +31,7 @@ class Host:
         self.mav = D.MAVLink(None, srcSystem=HOST[0], srcComponent=HOST[1])
         self.speed = speed_mm_s
         self.steer = 0  # cdeg
+        self.raw_pwm: tuple[int, int] | None = None  # (steer, speed) table units: raw (calibration) setpoints
         self.seq = 0
         self.msgs: list = []
         self.wheel_edges = True  # the wheel turns: without counts the health monitor stops the robot
@@ -51,8 +52,12 @@ class Host:
             t = min(end, self.fw.time_us + 50_000)
             self.seq += 1
             self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
-            self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, self.steer, self.speed, 0, 0, D.AGNAV_DRIVE_PHYSICAL,
-                                                             self.seq & 0xFFFF))
+            if self.raw_pwm is None:
+                self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, self.steer, self.speed, 0, 0,
+                                                                 D.AGNAV_DRIVE_PHYSICAL, self.seq & 0xFFFF))
+            else:  # as the calibration wizard sends them: forward is speed_mm_s 0
+                self.send(D.MAVLink_agnav_drive_setpoint_message(1, 1, 0, 0, *self.raw_pwm, D.AGNAV_DRIVE_RAW_PWM,
+                                                                 self.seq & 0xFFFF))
             if self.wheel_edges:  # a turning wheel: A/B in quadrature order (Hall mode counts A's rises)
                 t0 = self.fw.time_us + 1_000
                 for w in range(self.wheels):
@@ -105,6 +110,20 @@ def test_hall_wheels_of_a_differential_robot_turning_on_the_spot_count_their_own
         assert enc, "no AGNAV_ENCODER_STATUS"
         c = enc[-1].count
         assert c[0] < -20 and c[1] > 20, f"Hall counts left {c[0]}, right {c[1]}: the sides turn opposite ways"
+
+
+def test_raw_calibration_drive_toward_an_obstacle_is_stopped_by_the_avoid_layer():
+    """In raw PWM mode (the calibration sweep) forward is speed_mm_s 0 with a forward speed PWM: the avoid layer
+    must see it as forward before the wheels report motion, and stop short of an obstacle 0.2 m ahead."""
+    with Firmware() as fw:
+        h = Host(fw)
+        h.wheel_edges = False  # nothing measured yet: only the command says "forward"
+        h.echo_us[0] = 1_166  # front sonar: 200 mm
+        h.raw_pwm = (133, 60)
+        msgs = h.run(400_000)
+        st = last_status(msgs)
+        assert st.active_layer == D.AGNAV_LAYER_AVOID_OBSTACLE, f"layer {st.active_layer}, reason {st.reason}"
+        assert not driving(fw), f"throttle {fw.outputs().throttle_us} us towards an obstacle 0.2 m ahead"
 
 
 @pytest.mark.parametrize("invert", [0, 1])
