@@ -639,6 +639,14 @@ void agnav_setup(void)
 
     calib_init();
     calib_load();
+    /* A stored table this output stage cannot drive (written by an older firmware, e.g. in servo
+     * microseconds: full throttle here) is replaced by its default, as the link refuses such writes. */
+    for (uint8_t id = 0; id < (uint8_t)CALIB_TABLE_COUNT; id++) {
+        calib_table_t t;
+        if (calib_get_table(id, &t) && !drive_table_fits(id, &t)) {
+            calib_use_default(id);
+        }
+    }
 
     encoder_cfg_t enc[ENCODER_MAX];
     memset(enc, 0, sizeof enc);
@@ -675,7 +683,7 @@ void agnav_setup(void)
         link_send_statustext(MAV_SEVERITY_CRITICAL, LINK_TEXT("signing: key record corrupt, all frames refused; re-provision"));
     }
     if ((calib_health() & CALIB_DEFAULTED) != 0u) {
-        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("calib: EEPROM tables missing or corrupt, defaults in use"));
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("calib: EEPROM tables bad or unfit, defaults in use"));
     }
     if (s_params_corrupt) {
         link_send_statustext(MAV_SEVERITY_ERROR, LINK_TEXT("params: EEPROM record corrupt, defaults in use"));

@@ -126,6 +126,36 @@ def test_raw_calibration_drive_toward_an_obstacle_is_stopped_by_the_avoid_layer(
         assert not driving(fw), f"throttle {fw.outputs().throttle_us} us towards an obstacle 0.2 m ahead"
 
 
+def test_stored_calibration_table_the_output_stage_cannot_drive_is_replaced_at_boot():
+    """A record written before the output-stage check (a speed table in servo microseconds, CRC intact) is not
+    used at the next boot: the default table drives and a STATUSTEXT says why."""
+    import binascii
+
+    with Firmware() as fw:
+        h = Host(fw)
+        h.run(300_000)
+        h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_SPEED, D.AGNAV_CALIB_ACTION_SAVE))
+        h.run(300_000)
+        addr, n = fw.eeprom_record("calib")
+        rec = bytearray(fw.eeprom()[addr:addr + n])
+        speed = 6 + 68 * D.AGNAV_CALIB_SPEED  # header, then 68-byte tables: neutral u16, n, 8 x (pwm u16, value i16)
+        assert rec[speed + 2] == 2, "the default speed table has two points"
+        rec[speed:speed + 2] = (1500).to_bytes(2, "little")
+        for i, pwm in enumerate((1550, 1700)):
+            o = speed + 3 + 4 * i
+            rec[o:o + 2] = pwm.to_bytes(2, "little")
+        rec[-2:] = binascii.crc_hqx(bytes(rec[:-2]), 0xFFFF).to_bytes(2, "little")  # CRC-16/CCITT-FALSE
+        fw._lib.sil_eeprom_write(addr, bytes(rec), n)
+        fw.reboot()
+        h.msgs.clear()
+        msgs = h.run(500_000)
+        assert any("unfit, defaults in use" in t for t in texts(msgs)), texts(msgs)
+        assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
+        h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_SPEED, D.AGNAV_CALIB_ACTION_READ))
+        tables = [m for m in h.run(200_000) if m.get_type() == "AGNAV_CALIB_TABLE"]
+        assert tables and max(tables[-1].pwm) <= 255 and tables[-1].neutral_pwm == 0, tables
+
+
 @pytest.mark.parametrize("invert", [0, 1])
 def test_enc_invert_turns_a_mirrored_wheel_the_right_way(invert):
     """ENC_INVERT bit i swaps encoder i's counting direction (a wheel mounted mirrored)."""
@@ -285,7 +315,7 @@ def test_corrupt_calibration_falls_back_to_defaults_with_error():
         fw.corrupt_record("calib", offset=20, length=1, xor_mask=0x10)
         fw.reboot()
         msgs = Host(fw).run(500_000)
-        assert any(t.startswith("calib: EEPROM tables missing or corrupt") for t in texts(msgs)), texts(msgs)
+        assert any(t.startswith("calib: EEPROM tables bad or unfit") for t in texts(msgs)), texts(msgs)
         assert last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
 
 

@@ -251,6 +251,14 @@ bool calib_get_default(uint8_t id, calib_table_t *out)
     return true;
 }
 
+void calib_use_default(uint8_t id)
+{
+    if (id < (uint8_t)CALIB_TABLE_COUNT) {
+        s_tables[id] = CALIB_DEFAULTS[id];
+        s_health |= CALIB_DEFAULTED;
+    }
+}
+
 /* ---- storage -------------------------------------------------------------- */
 
 #define HDR_BYTES 6u

@@ -141,6 +141,10 @@ bool calib_get_table(uint8_t id, calib_table_t *out);
 /* Copy the built-in default of table id; false for a bad id. */
 bool calib_get_default(uint8_t id, calib_table_t *out);
 
+/* Make table id its default (the stored one is unusable, e.g. for the output stage) and say so in
+ * calib_health() (CALIB_DEFAULTED) until a save. */
+void calib_use_default(uint8_t id);
+
 /* Forward lookup on the active table: pwm -> cdeg or mm/s (0 for a bad id). */
 int32_t calib_value_from_pwm(uint8_t id, uint16_t pwm);
 
