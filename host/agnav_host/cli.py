@@ -8,9 +8,8 @@ Add a subcommand with the :func:`subcommand` decorator::
 Any option that takes a value may be given a negative number after a space (``--goal -3,5,90``,
 ``--start-speed -1e-3``): :func:`main` joins such an option with a value that reads as a number or a
 comma-separated list of numbers (``--goal=-3,5,90``) before argparse sees it, since argparse would
-otherwise take the value for an option. ``NEGATIVE_VALUE_OPTIONS`` collects the options a subcommand
-declares with ``negative_ok``; they are joined whatever their value looks like as long as it is
-numeric (kept for callers that list them).
+otherwise take the value for an option. The options that take a value are read from the parser, so a
+subcommand declares nothing for this.
 
 Number options use the checked types below (:func:`finite_float`, :func:`positive_float`, ...) so that
 ``nan``, ``inf`` or a negative count is refused by argparse with the option's name, not deep in a run.
@@ -25,7 +24,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "NEGATIVE_VALUE_OPTIONS", "build_parser",
+__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "build_parser",
            "finite_float", "positive_float", "nonneg_float", "positive_int", "nonneg_int", "int_in", "unusable_out_dir"]
 
 Handler = Callable[[argparse.Namespace], int]
@@ -41,7 +40,6 @@ class _Sub:
 
 
 SUBCOMMANDS: dict[str, _Sub] = {}
-NEGATIVE_VALUE_OPTIONS: set[str] = set()
 _UNSIGNED = r"((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan)"
 # a negative number, or a comma-separated list of numbers starting with one: "-3,5,90", "-1e-3", "-inf"
 _NUMLIST = re.compile(rf"^-{_UNSIGNED}(,[-+]?{_UNSIGNED})*$", re.IGNORECASE)
@@ -100,16 +98,13 @@ nonneg_int = int_in(0)
 
 
 def subcommand(name: str, help: str, args: Sequence[tuple[tuple[str, ...], dict[str, Any]]] = (),
-               negative_ok: Sequence[str] = (), epilog: str = "") -> Callable[[Handler], Handler]:
-    """Register ``fn`` as ``agnav <name>``; ``negative_ok`` names options whose values may start with '-'
-    (any value-taking option already may: kept for callers); ``epilog`` ends ``agnav <name> --help``
-    (exit codes, units)."""
+               epilog: str = "") -> Callable[[Handler], Handler]:
+    """Register ``fn`` as ``agnav <name>``; ``epilog`` ends ``agnav <name> --help`` (exit codes, units)."""
 
     def deco(fn: Handler) -> Handler:
         if name in SUBCOMMANDS:
             raise ValueError(f"subcommand {name!r} registered twice")
         SUBCOMMANDS[name] = _Sub(name, help, fn, tuple(args), epilog)
-        NEGATIVE_VALUE_OPTIONS.update(negative_ok)
         return fn
 
     return deco
@@ -139,10 +134,11 @@ def _value_options(parser: argparse.ArgumentParser) -> dict[str, set[str]]:
     return out
 
 
-def _join_negative_values(argv: list[str], value_options: dict[str, set[str]] | None = None) -> list[str]:
-    """Join an option that takes a value with a following negative number (list): ``--x -1`` -> ``--x=-1``."""
+def _join_negative_values(argv: list[str], value_options: dict[str, set[str]]) -> list[str]:
+    """Join an option that takes a value (``value_options``: :func:`_value_options`) with a following
+    negative number (list): ``--x -1`` -> ``--x=-1``."""
     sub = next((a for a in argv if not a.startswith("-")), None)
-    takes_value = NEGATIVE_VALUE_OPTIONS | ((value_options or {}).get(sub or "", set()))
+    takes_value = value_options.get(sub or "", set())
     out: list[str] = []
     i = 0
     while i < len(argv):
@@ -245,7 +241,6 @@ def _planner_names() -> list[str]:
                                    "model; also writes link.tlog and firmware.csv; avr: the same with the real "
                                    "ATmega2560 ELF under simavr (slower: keep --duration short)"}),
     ],
-    negative_ok=["--goal"],
 )
 def _cmd_sim(ns: argparse.Namespace) -> int:
     from .sim.runner import run_scenario, write_outputs

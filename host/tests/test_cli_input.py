@@ -10,7 +10,7 @@ from agnav_host.cli import _join_negative_values, _value_options, build_parser, 
 
 def test_any_value_option_takes_a_negative_number_after_a_space():
     opts = _value_options(build_parser())
-    # --duration is not declared negative_ok anywhere: joined because it takes a value
+    # --duration: joined because it takes a value (read from the parser)
     assert _join_negative_values(["sim", "--duration", "-1e0", "--out", "o"], opts) == ["sim", "--duration=-1e0", "--out", "o"]
     assert _join_negative_values(["sim", "--goal", "-inf,3,90", "--out", "o"], opts)[1] == "--goal=-inf,3,90"
     # a flag is never joined with what follows it, and a non-number is left alone

@@ -26,7 +26,8 @@ def test_help_on_every_command(name, capsys):
 
 def test_negative_goal_is_a_value():
     p = cli.build_parser()
-    ns = p.parse_args(cli._join_negative_values(["run", "--device", "tcp:127.0.0.1:1", "--goal", "-3,-5,-90"]))
+    ns = p.parse_args(cli._join_negative_values(["run", "--device", "tcp:127.0.0.1:1", "--goal", "-3,-5,-90"],
+                                                cli._value_options(p)))
     assert ns.goal == (-3.0, -5.0, -90.0)
 
 

@@ -468,7 +468,7 @@ subcommand("run", help="drive a robot (or a SIL over tcp:) with the firmware lay
                (("--no-avoid",), {"action": "store_true", "help": "disable passive obstacle avoidance (careful)"}),
                (("--rrd",), {"default": None, "help": "save a rerun recording here, FILE.rrd (open with `rerun FILE`; "
                                                       "default: none)"}),
-           ], negative_ok=["--goal"])(lambda ns: _guard("run", _cmd_run, ns))
+           ])(lambda ns: _guard("run", _cmd_run, ns))
 
 
 # ---- calibrate -----------------------------------------------------------------------------------

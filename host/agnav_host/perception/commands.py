@@ -61,7 +61,6 @@ def _method_names() -> list[str]:
                           "help": f"expected row spacing, m, > 0 and <= {_MAX_SPACING_M:g} (default 0.75)"}),
         (("--json",), {"action": "store_true", "help": "print one JSON object"}),
     ],
-    negative_ok=["--mount"],
 )
 def _cmd_rows(ns: argparse.Namespace) -> int:
     from ..scanio import ScanFileError, load_scan_csv

@@ -72,7 +72,6 @@ _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
                                   "spaced from the start to the car at rest on the goal (default: none)"}),
         (("--json",), {"action": "store_true", "help": "print JSON"}),
     ],
-    negative_ok=["--start", "--goal", "--start-steer-deg", "--goal-steer-deg"],
 )
 def _cmd_plan(ns: argparse.Namespace) -> int:
     import numpy as np
