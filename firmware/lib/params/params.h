@@ -56,8 +56,9 @@ int16_t params_find(const char *name);
 bool params_def(uint16_t index, param_def_t *out);
 int32_t params_get(uint16_t index);
 
-/* A counter that moves on every value stored (params_set, params_load, the defaults): compare it with
- * an earlier reading to know that parameters changed and derived settings must be re-applied. */
+/* A counter that moves on every value stored through this module (params_set, and so params_load;
+ * not the modules' own defaults): compare it with an earlier reading to know that parameters changed
+ * and derived settings must be re-applied. */
 uint8_t params_changes(void);
 /* Range-checked set; out-of-range values are refused and the old value stays. */
 params_result_t params_set(uint16_t index, int32_t value);

@@ -152,12 +152,14 @@ class Wizard:
         self.plots: list[Path] = []
 
     # ---- operator input -------------------------------------------------------------------------
-    def _confirm(self, question: str, moved: bool = False) -> bool:
+    def _confirm(self, question: str, moved: bool = False, state: str = "") -> bool:
+        """The operator's yes/no; EOF on stdin is :class:`InputClosed`, saying what has happened so far
+        (``state``, default: nothing written, and the car stopped if ``moved``)."""
         try:
             return bool(self.io.confirm(question))
         except EOFError:
-            raise InputClosed(f"input closed (EOF on stdin) at the question {question!r}; "
-                              f"{'the car is stopped; ' if moved else ''}nothing was written") from None
+            state = state or f"{'the car is stopped; ' if moved else ''}nothing was written"
+            raise InputClosed(f"input closed (EOF on stdin) at the question {question!r}; {state}") from None
 
     # ---- safety ---------------------------------------------------------------------------------
     def _brief(self, what: str) -> None:
@@ -362,11 +364,8 @@ class Wizard:
             raise Aborted("table not written")
         self.robot.calib_write_verified(fit.table, save=False)
         self.io.say("written and verified by read-back")
-        try:
-            do_save = save if save is not None else self.io.confirm("Save all tables to EEPROM?")
-        except EOFError:
-            raise InputClosed("input closed (EOF on stdin) at the question 'Save all tables to EEPROM?': the "
-                              "table is written and active but not saved (lost at the next reset)") from None
+        do_save = save if save is not None else self._confirm(
+            "Save all tables to EEPROM?", state="the table is written and active but not saved (lost at the next reset)")
         if do_save:
             self.robot.calib_save(table_id)
             self.io.say("saved to EEPROM")

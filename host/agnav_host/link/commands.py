@@ -637,7 +637,9 @@ class UnknownParameter(ValueError):
 
 
 def known_param_names() -> list[str]:
-    """Parameter names of the AgNav firmware (its PARAMS table, mirrored by the fake robot)."""
+    """Parameter names the host knows offline: the fake robot's mirror of part of the firmware's PARAMS table
+    (20 of its rows). Used for hints and the whole-number check before connecting; a name outside it is
+    checked with the robot itself (:func:`_param_read`)."""
     try:
         from .fake import FIRMWARE_PARAMS
     except ImportError:

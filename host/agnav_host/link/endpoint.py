@@ -302,7 +302,6 @@ class Endpoint:
         self._opened_once = threading.Event()
         self._open_done = threading.Event()  # first open succeeded, or gave up (_open_error)
         self._open_error: tuple[BaseException, str] | None = None  # last failure before the first open
-        self._open_gave_up = False
         self.require_signed = require_signed
         if key is not None:
             self.set_signing_key(key)
@@ -366,7 +365,7 @@ class Endpoint:
         self._open_done.wait(open_timeout_s)
         if not self._opened_once.is_set():
             failure = self._open_error
-            gave_up = self._open_gave_up
+            gave_up = self._open_done.is_set()  # the I/O thread stopped trying (else: timed out)
             self.close()
             if failure is None:
                 raise ConnectionError(f"could not open {self.spec} within {open_timeout_s:g} s "
@@ -460,8 +459,7 @@ class Endpoint:
                         policy, text = _open_failure(self.spec, e)
                         self._open_error = (e, text)
                         if policy == "fatal" or (policy == "grace" and now - first_try >= OPEN_GRACE_S):
-                            self._open_gave_up = True  # start() raises; nothing left to do here
-                            self._open_done.set()
+                            self._open_done.set()  # without an open: start() raises; nothing left to do
                             break
                     continue
                 if self._opened_once.is_set():
