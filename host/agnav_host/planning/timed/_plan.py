@@ -192,22 +192,23 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     s0 = BoundaryState(start.x_m, start.y_m, start.yaw_rad, steer0, max(0.0, start.speed_m_s))
     states = (s0, *vias, goal)
     try:
+        direct_error: ValueError | None = None
         if path is None:
             try:
                 path = build_path(list(states), lim.wheelbase_m)
-            except ValueError:
+            except ValueError as e:
                 # e.g. a goal behind the start: the direct leg would need a cusp (an in-place reversal);
                 # a generated via point may still give a drivable loop
                 if not (auto_via and not vias):
                     raise
-                found = _auto_via(s0, goal, lim, deadline)
-                if found is None:
-                    raise
-                path, states = found
-        if auto_via and not vias and len(states) == 2 and math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad:
+                direct_error = e
+        # a generated via point when there is no direct path, or the direct one turns too tight
+        if auto_via and not vias and (path is None or math.atan(lim.wheelbase_m * path.max_abs_kappa) > lim.plan_steer_rad):
             found = _auto_via(s0, goal, lim, deadline)
             if found is not None:
                 path, states = found
+            elif direct_error is not None:
+                raise direct_error
     except ValueError as e:
         empty = SpeedProfile(np.array([0.0]), np.zeros(0), np.zeros(0), np.zeros(0), ())
         dummy = GeoPath(np.array([[s0.x_m, s0.y_m]]), np.array([s0.yaw_rad]), np.zeros(1), np.zeros(1), (), (0.0,))
