@@ -191,6 +191,10 @@ def test_link_silent_between_steps_aborts_at_that_pwm(rig):
             fr.mute = True
             calls["muted_at"] = time.monotonic()
             calls["sps"] = len(fr.received_of("AGNAV_DRIVE_SETPOINT"))
+            # frames already on their way (socket buffer, a loaded machine) land before this step listens: the
+            # step is then silent from its start, as the test means (else it sees them, and only the next
+            # step can tell the 0.6 s silence from its own 0.35 s)
+            time.sleep(0.1)
         return real(*a, **k)
 
     w.measure_step = step
