@@ -105,58 +105,53 @@ def _leg_coeffs(a: BoundaryState, b: BoundaryState, lam: float, wheelbase_m: flo
     return hermite5_coeffs(sa, sb, 1.0, wheelbase_m)
 
 
-_SCALES = np.asarray(LAMBDA_SCALES)
-
-
-def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
-    """Coefficients (6, m) of x(u), y(u) for every tangent length in ``lam`` (m,) at once: the same
-    equations as :func:`~._poly.poly003_coeffs` / :func:`~._poly.hermite5_coeffs` with T = 1, vectorised."""
+def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: tuple[float, ...], wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
+    """Coefficients (6, m) of x(u), y(u) for every tangent length in ``lam`` (m values) at once: the same
+    equations as :func:`~._poly.poly003_coeffs` / :func:`~._poly.hermite5_coeffs` with T = 1. Scalar
+    arithmetic per candidate: for four candidates it is several times faster than numpy on (4,) arrays."""
     if form != "003":
         return _hermite5_candidates(a, b, lam, wheelbase_m)
     ca, cb = math.cos(a.yaw_rad), math.cos(b.yaw_rad)
     ta, tb = math.tan(a.yaw_rad), math.tan(b.yaw_rad)
     ka, kb = math.tan(a.steer_rad) / wheelbase_m, math.tan(b.steer_rad) / wheelbase_m
-    vx0, vxT = lam * ca, lam * cb
+    ca3, cb3 = ca**3, cb**3
     d = b.x_m - a.x_m
-    a2 = 3.0 * d - 2.0 * vx0 - vxT
-    a3 = -2.0 * d + vx0 + vxT
-    z = np.zeros_like(lam)
-    CX = np.vstack((np.full_like(lam, a.x_m), vx0, a2, a3, z, z))
-    xdd0, xddT = 2.0 * a2, 2.0 * a2 + 6.0 * a3
-    ay0 = ka * vx0 * vx0 / ca**3 + ta * xdd0  # 003 chain rule (see _poly)
-    ayT = kb * vxT * vxT / cb**3 + tb * xddT
-    vy0, vyT = vx0 * ta, vxT * tb
-    c0, c1, c2 = a.y_m, vy0, 0.5 * ay0
-    r0 = b.y_m - (c0 + c1 + c2)
-    r1 = vyT - (c1 + 2.0 * c2)
-    r2 = ayT - 2.0 * c2
-    CY = np.vstack((np.full_like(lam, c0), c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
-                    (12.0 * r0 - 6.0 * r1 + r2) / 2.0))
-    return CX, CY
+    cols = []
+    for L in lam:
+        vx0, vxT = L * ca, L * cb
+        a2 = 3.0 * d - 2.0 * vx0 - vxT
+        a3 = -2.0 * d + vx0 + vxT
+        xdd0, xddT = 2.0 * a2, 2.0 * a2 + 6.0 * a3
+        ay0 = ka * vx0 * vx0 / ca3 + ta * xdd0  # 003 chain rule (see _poly)
+        ayT = kb * vxT * vxT / cb3 + tb * xddT
+        cols.append((a.x_m, vx0, a2, a3, 0.0, 0.0) + _quintic_unit(a.y_m, vx0 * ta, ay0, b.y_m, vxT * tb, ayT))
+    c = np.array(cols).T
+    return c[:6], c[6:]
 
 
-def _quintic_unit(p0: FloatArray | float, v0: FloatArray, a0: FloatArray, pT: FloatArray | float, vT: FloatArray,
-                  aT: FloatArray) -> FloatArray:
-    """(6, m) coefficients of :func:`~._poly.quintic_coeffs` with T = 1 for m sets of end conditions."""
-    c0 = np.broadcast_to(np.asarray(p0, dtype=float), np.shape(v0))
+def _quintic_unit(p0: float, v0: float, a0: float, pT: float, vT: float, aT: float) -> tuple[float, ...]:
+    """The six coefficients of :func:`~._poly.quintic_coeffs` with T = 1."""
     c1, c2 = v0, 0.5 * a0
-    r0 = pT - (c0 + c1 + c2)
+    r0 = pT - (p0 + c1 + c2)
     r1 = vT - (c1 + 2.0 * c2)
     r2 = aT - 2.0 * c2
-    return np.vstack((c0, c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
-                      (12.0 * r0 - 6.0 * r1 + r2) / 2.0))
+    return (p0, c1, c2, (20.0 * r0 - 8.0 * r1 + r2) / 2.0, (-30.0 * r0 + 14.0 * r1 - 2.0 * r2) / 2.0,
+            (12.0 * r0 - 6.0 * r1 + r2) / 2.0)
 
 
-def _hermite5_candidates(a: BoundaryState, b: BoundaryState, lam: FloatArray, wheelbase_m: float) -> tuple[FloatArray, FloatArray]:
+def _hermite5_candidates(a: BoundaryState, b: BoundaryState, lam: tuple[float, ...], wheelbase_m: float) -> tuple[FloatArray, FloatArray]:
     """(6, m) x and y coefficients of :func:`~._poly.hermite5_coeffs` (T = 1, speed = tangent length) for
-    every tangent length in ``lam`` at once."""
+    every tangent length in ``lam``."""
     ca, sa = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
     cb, sb = math.cos(b.yaw_rad), math.sin(b.yaw_rad)
     ka, kb = math.tan(a.steer_rad) / wheelbase_m, math.tan(b.steer_rad) / wheelbase_m
-    l2 = lam * lam
-    CX = _quintic_unit(a.x_m, lam * ca, -l2 * ka * sa, b.x_m, lam * cb, -l2 * kb * sb)
-    CY = _quintic_unit(a.y_m, lam * sa, l2 * ka * ca, b.y_m, lam * sb, l2 * kb * cb)
-    return CX, CY
+    cols = []
+    for L in lam:
+        l2 = L * L
+        cols.append(_quintic_unit(a.x_m, L * ca, -l2 * ka * sa, b.x_m, L * cb, -l2 * kb * sb)
+                    + _quintic_unit(a.y_m, L * sa, l2 * ka * ca, b.y_m, L * sb, l2 * kb * cb))
+    c = np.array(cols).T
+    return c[:6], c[6:]
 
 
 _BASIS: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
@@ -248,7 +243,7 @@ def _build_leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float,
     ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
     rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
     form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
-    CX, CY = _leg_candidates(ra, rb, chord * _SCALES, wheelbase_m, form)
+    CX, CY = _leg_candidates(ra, rb, tuple(chord * k for k in LAMBDA_SCALES), wheelbase_m, form)
     _, _, sp, kap, hd = _eval_leg(CX, CY, 41)
     # no cusp: the tangent never (nearly) vanishes at a sample, and never turns by more than 90 deg
     # between two neighbouring samples. The second test catches a cusp that falls between samples on
