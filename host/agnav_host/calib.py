@@ -92,10 +92,13 @@ class CalibTable:
     def pwm_from_value(self, value: float) -> float:
         """PWM the controller outputs for a wanted physical value (rad or m/s).
 
-        0 gives the neutral PWM. A magnitude below the side's first value (inside the dead band's
-        jump) gives that first breakpoint, the smallest command that moves the actuator; a magnitude
-        beyond the table saturates. A direction whose side is empty gives the neutral PWM. The result is
-        rounded to ``quantum_pwm`` and never falls back inside the dead band.
+        0 gives the neutral PWM. A magnitude below the side's first value (slower, or a smaller angle,
+        than the actuator can give) gives the neutral PWM too, as the firmware's ``calib_table_pwm``
+        does: the car stops (or steers straight) rather than creeping at its smallest command. A
+        magnitude beyond the table saturates. A direction whose side is empty gives the neutral PWM (the
+        firmware would drive the other side's magnitude on a sign-magnitude output stage; an RC car's
+        speed controller without reverse does nothing). The result is rounded to ``quantum_pwm`` and
+        never falls back inside the dead band.
         """
         if not math.isfinite(value):
             raise CalibError(f"{self.name}: cannot look up non-finite value {value!r}")
@@ -107,7 +110,9 @@ class CalibTable:
         if not side_pwm:
             return self._quantise(self.neutral_pwm, 0)
         mag = min(abs(value), self.value_max, side_val[-1])
-        if mag <= side_val[0]:
+        if mag < side_val[0]:
+            return self._quantise(self.neutral_pwm, 0)
+        if mag == side_val[0]:
             pwm = side_pwm[0]
         elif sign > 0:
             pwm = float(np.interp(mag, side_val, side_pwm))

@@ -10,6 +10,8 @@ import sys
 import threading
 import time
 
+import re
+
 import pytest
 import serial
 from pymavlink import mavutil
@@ -267,7 +269,11 @@ def test_cli_calibrate_link_lost_exits_non_zero(tmp_path, capsys, monkeypatch):
         assert fr.received_of("AGNAV_DRIVE_SETPOINT")[-1].speed_mm_s == 0
         assert not fr.received_of("AGNAV_CALIB_TABLE")
     err = capsys.readouterr().err
-    assert "agnav calibrate: link lost during the sweep at pwm 24; nothing was written" in err
+    # the radio goes quiet from the second step (pwm 24) on; the loss is noticed link_timeout_s later,
+    # in that step or, when the machine is slow and the step short, in the next (pwm 32) - never before
+    m = re.search(r"agnav calibrate: link lost during the sweep at pwm (\d+); nothing was written", err)
+    assert m is not None, err
+    assert int(m.group(1)) in (24, 32)
 
 
 # ---- Defect B: closed stdin ----------------------------------------------------------------------

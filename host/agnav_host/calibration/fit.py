@@ -222,6 +222,12 @@ def fit_table(pwm: np.ndarray, value: np.ndarray, table_id: int, *, dead_band: f
     for a, b in ((pos_pts, neg_pts), (neg_pts, pos_pts)):
         if a and b and a[0] == (n, 0) and b[0][1] == 0 and b[0][0] != n:
             b[0] = (n, 0)
+    # The robot gives a lone zero point at neutral to the positive side. When the sweep put it on the
+    # negative side (a trim a fraction of a count off: the positive side starts with a jump further
+    # out), move it over: the positive side then ramps from neutral, which is what the samples between
+    # neutral and its first moving point showed; integer lookups on the negative side do not change.
+    if neg_pts and neg_pts[0] == (n, 0) and len(neg_pts) >= 3 and pos_pts and pos_pts[0][0] != n:
+        pos_pts = _simplify([neg_pts.pop(0)] + pos_pts, max_side_points)
     table = WireTable(table_id, n, tuple(pos_pts), tuple(neg_pts))
     if not round_trips(table):
         raise CalibFitError(f"fitted table is ambiguous on the wire: {table.describe()}")

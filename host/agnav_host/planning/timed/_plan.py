@@ -31,7 +31,8 @@ class TimedLimits:
 
     The end of every plan is the car's real stop: it comes in at v_min, the command drops to 0 and the
     speed controller's lag (``stop_lag_s``) brings it to rest over v_min * lag (about 11 cm), modelled
-    as a constant deceleration v_min / (2 lag); the ``creep_m`` before it are driven at v_min so the car
+    as a constant deceleration v_min / (2 lag) (not limited by ``accel_m_s2``, which bounds the commanded
+    ramps; the summary reports it as ``stop_decel_mps2``); the ``creep_m`` before it are driven at v_min so the car
     enters the stop at that speed. The plan's *arrival* is when that stop brings the car
     within ``arrive_tol_m`` of the goal; it comes to rest a fraction of a second later."""
 
@@ -156,6 +157,9 @@ class TimedPlan:
             "cruise_speed_mps": round(self.profile.cruise_speed_m_s, 3),
             "speed_band_mps": [round(self.limits.v_min_m_s, 3), round(self.limits.v_max_m_s, 3)],
             "accel_limit_mps2": self.limits.accel_m_s2,
+            # the car's own stop from v_min when the command drops to 0 (its speed controller's lag), not
+            # a commanded ramp: the acceleration limit applies to the ramps only
+            "stop_decel_mps2": round(self.limits.v_min_m_s / (2.0 * self.limits.stop_lag_s), 3) if "stop" in self.profile.kind else 0.0,
             "dwell_s": round(self.profile.dwell_s, 3),
             "polynomial_forms": list(self.path.forms),
             "via_points": [[round(s.x_m, 3), round(s.y_m, 3)] for s in self.states[1:-1]],
@@ -232,9 +236,19 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     if dwell_first_s > 0:
         a = sp.accel_m_s2
         d_brake = v0 * v0 / (2 * a)
-        if d_brake >= S:
-            d_brake = 0.0
-        brake = solve_leg(d_brake, v0 / a, v0, 0.0, sp) if v0 > 1e-6 and d_brake > 0 else None
+        brake: SpeedProfile | None = None
+        if v0 > 1e-6 and d_brake >= S:
+            # no room to stop at the allowed deceleration before the path ends: brake harder over what is
+            # left (what the car would have to do) and say so
+            feasible = False
+            reasons.append(f"asked to stop and wait, but braking from {v0:.2f} m/s at {a:.2f} m/s^2 takes "
+                           f"{d_brake:.2f} m and only {S:.2f} m of path are left")
+            d_brake = S
+            if S > 1e-6:
+                a_hard = v0 * v0 / (2.0 * S)
+                brake = SpeedProfile(np.array([0.0, v0 / a_hard]), np.array([0.0]), np.array([v0]), np.array([-a_hard]), ("ramp",))
+        elif v0 > 1e-6 and d_brake > 0:
+            brake = solve_leg(d_brake, v0 / a, v0, 0.0, sp)
         if brake is not None:
             pre.append(brake)
             s_pre, t_pre = d_brake, brake.duration_s
@@ -245,7 +259,11 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     # the stop tail: in at v_min, lag stop over v_min * lag (see TimedLimits)
     a_stop = lim.v_min_m_s / (2.0 * lim.stop_lag_s)
     d_tail = lim.v_min_m_s * lim.stop_lag_s
+    d_reach = lim.v_min_m_s ** 2 / (2.0 * sp.accel_m_s2)  # from rest up to v_min
     use_tail = d_rest > 2.0 * d_tail and lim.v_min_m_s > 0
+    if use_tail and v0 < lim.v_min_m_s and (d_rest - d_tail - min(lim.creep_m, max(0.0, d_rest - 3.0 * d_tail))
+                                            < d_reach - v0 * v0 / (2.0 * sp.accel_m_s2)):
+        use_tail = False  # too short to speed up to v_min before the tail: end at rest instead
     if use_tail:
         settle = math.sqrt(2.0 * min(lim.arrive_tol_m, d_tail) / a_stop)
         t_tail = 2.0 * lim.stop_lag_s
@@ -279,8 +297,17 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
             leg = solve_leg(d_main, e.min_time_s, v0, v_end, sp)
         else:
             reasons.append(e.reason)
-            leg = solve_leg(d_main, max(leg_min_time_s(d_main, 0.0, v_end, sp), 1e-3), 0.0, v_end, sp)
+            # timed as if the car were already slow enough (from rest, or at v_min into the tail when
+            # even that is too short from rest)
+            v_fb = 0.0 if math.isfinite(leg_min_time_s(d_main, 0.0, v_end, sp)) else v_end
+            leg = solve_leg(d_main, max(leg_min_time_s(d_main, v_fb, v_end, sp), 1e-3), v_fb, v_end, sp)
             earliest = None
+    if tail is None and lim.v_min_m_s > 0 and d_main > 1e-6 and v0 < lim.v_min_m_s and leg.max_speed_m_s < lim.v_min_m_s - 1e-9:
+        # the whole move would stay below the calibrated band, where the car does not move at all
+        feasible = False
+        reasons.append(f"the goal is {d_main:.2f} m away, less than the car's smallest move of {d_reach + d_tail:.2f} m "
+                       f"(from rest up to v_min {lim.v_min_m_s:.2f} m/s at {sp.accel_m_s2:.2f} m/s^2, then its stop)")
+        earliest = None
     parts = pre + [leg] + ([tail] if tail is not None else [])
     profile = concat_profiles(parts) if len(parts) > 1 else leg
     if feasible:

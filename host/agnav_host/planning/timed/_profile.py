@@ -175,7 +175,8 @@ def solve_leg(d: float, tau: float, v_s: float, v_e: float, lim: SpeedLimits, al
         return _profile_from([("dwell", tau, 0.0, 0.0)])
     t_min = leg_min_time_s(d, v_s, v_e, lim)
     if not math.isfinite(t_min):
-        raise LegInfeasible(f"cannot brake from {v_s:.2f} to {v_e:.2f} m/s within {d:.2f} m", math.inf)
+        raise LegInfeasible(f"cannot {'brake' if v_e < v_s else 'speed up'} from {v_s:.2f} to {v_e:.2f} m/s within {d:.2f} m",
+                            math.inf)
     if tau < t_min - 1e-6:
         raise LegInfeasible(f"{d:.2f} m in {tau:.2f} s needs an average of {d / max(tau, 1e-9):.2f} m/s; with "
                             f"v_max {lim.v_max_m_s:.2f} m/s and {a:.2f} m/s^2 the fastest is {t_min:.2f} s", t_min)

@@ -38,10 +38,13 @@ def arc_radius_m(d_m: float, dtheta_rad: float) -> float:
 
 
 def steer_from_arc(d_m: float, dtheta_rad: float, wheelbase_m: float, max_steer_rad: float) -> float:
-    """phi = atan(l / Rb), clipped to +-max_steer_rad; rad, + = left."""
+    """phi = atan(l / Rb), clipped to +-max_steer_rad; rad, + = left. A reference point on the robot
+    (d = 0, Rb = 0) gives full lock towards dtheta."""
     rb = arc_radius_m(d_m, dtheta_rad)
     if math.isinf(rb):
         return 0.0
+    if rb == 0.0:
+        return math.copysign(max_steer_rad, dtheta_rad) if dtheta_rad != 0.0 else 0.0
     phi = math.atan(wheelbase_m / rb)
     return max(-max_steer_rad, min(max_steer_rad, phi))
 
@@ -102,7 +105,12 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
     d = math.hypot(dx, dy)
     alpha = math.atan2(dy, dx) - pose.yaw_rad
     alpha = (alpha + math.pi) % (2.0 * math.pi) - math.pi
-    steer = steer_from_arc(d, p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
+    if abs(alpha) > 0.5 * math.pi:
+        # the reference point is behind: the arc through it would be nearly straight (Rb -> inf as alpha
+        # -> 180 deg) and drive away from the path; turn towards it at full lock instead
+        steer = math.copysign(lim.max_steer_rad, alpha)
+    else:
+        steer = steer_from_arc(d, p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
     # ---- speed: schedule + along-path correction, band rule, stop on the goal -----------------
     err = s_ref - s_rob  # > 0: behind schedule
     v = v_ref + p.k_s * err

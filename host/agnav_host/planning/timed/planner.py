@@ -262,6 +262,11 @@ class TimedPlanner:
         if self.plan is None or self._goal_key(target) != self._key:
             self._initial_plan(obs, target, before)
         assert self.plan is not None
+        if len(self.plan.path.s) < 2:
+            # no drivable path to this goal (the status says why): stay stopped
+            self._last_steer = 0.0
+            self._last_v_cmd = 0.0
+            return DriveCommand(0.0, 0.0, 0.0)
         p = self.params
         given = obs.extras.get("tracks", obs.extras.get("moving_obstacles"))
         if given is None and p.track_from_scan and obs.scan is not None and obs.scan.pose is not None:

@@ -1,0 +1,129 @@
+"""Time-critical planning at its edges: requests the planner cannot serve must come back as plans that
+say so (never an exception, never a "feasible" plan the car cannot drive), and the calibration lookups
+must agree with the firmware's."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from agnav_host import cli
+from agnav_host.calib import default_speed_table, default_steering_table
+from agnav_host.calibration import fit as F
+from agnav_host.link.calib_wire import TABLE_SPEED, TABLE_STEER, from_calib_table, round_trips
+from agnav_host.planning.timed import BoundaryState, TimedLimits, TimedPlanner, TrackingParams, TrackState, plan_timed, steer_from_arc, track
+from agnav_host.types import Goal, Observation, Pose2D
+
+
+def _speeds(plan, n=4000):
+    t = np.linspace(0.0, plan.profile.duration_s, n)
+    _, v = plan.profile.eval(t)
+    return t, v
+
+
+def test_planner_with_no_path_to_its_goal_stands_still_and_says_why():
+    # the goal straight behind the start, same heading: no forward path exists
+    pl = TimedPlanner()
+    pl.reset()
+    goal = Goal(-3.0, 0.0, 0.0, 20.0, 0.05)
+    for k in range(5):
+        cmd = pl.step(Observation(k * 0.05, Pose2D(), 0.0, 0.0, goal, None, None, {}))
+        assert (cmd.speed_m_s, cmd.steer_rad) == (0.0, 0.0)
+    assert pl.status["feasible"] is False
+    assert "behind the start" in pl.status["reason"]
+
+
+@pytest.mark.parametrize("accel, v_min, dist", [(0.3, 0.435, 0.3), (0.5, 0.9, 1.0), (0.3, 0.435, 0.5)])
+def test_too_short_to_reach_the_band_before_the_stop_is_a_plan_not_an_exception(accel, v_min, dist):
+    lim = TimedLimits(accel_m_s2=accel, v_min_m_s=v_min)
+    p = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(dist, 0.0, 0.0), 0.0, 10.0, lim)
+    t, v = _speeds(p)
+    dv = np.diff(v) / np.diff(t)
+    if p.feasible:
+        # then it really reaches the band and ramps within the limit (the stop tail excepted)
+        assert v.max() >= v_min - 1e-9
+        ramps = [a for a, k in zip(p.profile.a_m_s2, p.profile.kind) if k != "stop"]
+        assert max(abs(a) for a in ramps) <= accel + 1e-9
+    else:
+        assert "smallest move" in p.reason
+        assert p.earliest_arrival_s is None
+    assert np.all(np.isfinite(dv))
+
+
+def test_plan_cli_reports_a_too_short_move_with_exit_3(capsys):
+    rc = cli.main(["plan", "--start", "0,0,0", "--goal", "0.3,0,0", "--arrive-in", "10", "--accel", "0.3", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 3
+    assert out["feasible"] is False and "smallest move" in out["reason"]
+
+
+@pytest.mark.parametrize("dist, feasible", [(0.05, False), (0.10, False), (0.15, False), (0.25, True), (1.0, True)])
+def test_a_move_that_never_reaches_the_speed_band_is_not_feasible(dist, feasible):
+    lim = TimedLimits()
+    p = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(dist, 0.0, 0.0), 0.0, 5.0, lim)
+    assert p.feasible is feasible, p.reason
+    if feasible:
+        _, v = _speeds(p)
+        assert v.max() >= lim.v_min_m_s - 1e-9
+
+
+def test_stop_and_wait_without_room_to_brake_is_not_feasible_and_keeps_the_speed_continuous():
+    lim = TimedLimits()
+    v0, S = 1.8, 1.2  # braking at 1 m/s^2 needs 1.62 m
+    p = plan_timed(BoundaryState(0.0, 0.0, 0.0, 0.0, v0), BoundaryState(S, 0.0, 0.0), 0.0, 10.0, lim, dwell_first_s=1.0)
+    assert p.feasible is False and "stop and wait" in p.reason
+    _, v0_plan = p.profile.eval(0.0)
+    assert float(v0_plan) == pytest.approx(v0)  # no jump from the car's speed to 0
+    assert p.profile.kind[0] == "ramp" and p.profile.a_m_s2[0] == pytest.approx(-v0 * v0 / (2.0 * S))
+    # with room to brake it stays feasible, braking at the limit
+    q = plan_timed(BoundaryState(0.0, 0.0, 0.0, 0.0, 1.0), BoundaryState(3.0, 0.0, 0.0), 0.0, 10.0, lim, dwell_first_s=1.0)
+    assert q.feasible and q.profile.a_m_s2[0] == pytest.approx(-lim.accel_m_s2)
+
+
+def test_summary_reports_the_cars_own_stop_apart_from_the_ramp_limit():
+    lim = TimedLimits(accel_m_s2=0.5)
+    s = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(4.0, 0.0, 0.0), 0.0, 12.0, lim).summary()
+    assert s["accel_limit_mps2"] == 0.5
+    assert s["stop_decel_mps2"] == pytest.approx(lim.v_min_m_s / (2.0 * lim.stop_lag_s), abs=1e-3)
+
+
+@pytest.mark.parametrize("yaw_deg", [100.0, 150.0, 175.0, 179.9, -100.0, -179.9])
+def test_tracker_turns_at_full_lock_when_the_reference_point_is_behind(yaw_deg):
+    p = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(5.0, 0.0, 0.0), 0.0, 10.0)
+    _, steer = track(p, Pose2D(1.0, 0.0, math.radians(yaw_deg)), 0.5, 2.0, TrackState(s_m=1.0), TrackingParams())
+    # the path runs along +x: turning back towards it is clockwise for a robot heading left-back
+    assert steer == pytest.approx(-math.copysign(p.limits.max_steer_rad, yaw_deg))
+
+
+def test_arc_steering_with_the_reference_point_on_the_robot():
+    lim = math.radians(20.0)
+    assert steer_from_arc(0.0, 0.4, 0.174, lim) == pytest.approx(lim)
+    assert steer_from_arc(0.0, -0.4, 0.174, lim) == pytest.approx(-lim)
+    assert steer_from_arc(0.0, 0.0, 0.174, lim) == 0.0
+
+
+def test_inverse_lookup_below_the_first_breakpoint_stops_like_the_firmware():
+    for t, tid, unit in ((default_speed_table(), TABLE_SPEED, 1000.0), (default_steering_table(), TABLE_STEER, 18000.0 / math.pi)):
+        wire = from_calib_table(t, tid)
+        for value in np.linspace(-t.value_max, t.value_max, 241):
+            pwm = t.pwm_from_value(float(value))
+            if abs(value) * unit < min(abs(wire.pos[0][1]), abs(wire.neg[0][1]) if wire.neg else math.inf) - 1.0:
+                assert pwm == t.neutral_pwm or round(pwm) == round(t.neutral_pwm), (t.name, value, pwm)
+    sp = default_speed_table()
+    assert sp.pwm_from_value(0.9 * sp.pos_value[0]) == sp.neutral_pwm  # too slow to move: stop, not a creep
+    assert sp.pwm_from_value(sp.pos_value[0]) == pytest.approx(round(sp.pos_pwm[0]), abs=1)
+
+
+@pytest.mark.parametrize("offset", [-4.75, -2.75, -0.75, 1.25, 3.25])
+def test_steering_sweep_with_a_fractional_trim_fits(offset):
+    true = default_steering_table().miscalibrated(1.0, offset)
+    cdeg = 18000.0 / math.pi
+    p, v = F.synthetic_sweep(true, np.arange(90, 176), cdeg, repeats=1)
+    res = F.fit_table(p, v, TABLE_STEER, dead_band=50)
+    assert round_trips(res.table)
+    # every swept integer PWM within a count's worth of angle (0.65 deg) of the car's own value
+    err = [abs(res.table.value(int(q)) - true.value_from_pwm(float(q)) * cdeg) for q in range(90, 176)]
+    assert max(err) <= 70.0
