@@ -13,7 +13,8 @@ spanning at most 2 pi (a file in degrees is refused), and must be evenly spaced 
 a range of NaN, inf or 0 means no return (``nan``/``inf`` are written as such). ``range_max_m`` (and
 ``range_min_m``, if given) must be > 0 with ``range_min_m < range_max_m``. A UTF-8 byte-order mark
 (files saved by Excel) is accepted. The pose line gives the sensor pose in the world frame and is
-optional (its keys may appear in any order; all four pose keys or none). Other comment lines are ignored.
+optional (its keys may appear in any order; all four pose keys or none). A comment line that names none of
+these keys is free text and ignored (``# operator=Anna`` too).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ __all__ = ["ScanFileError", "save_scan_csv", "load_scan_csv", "HEADER"]
 
 HEADER = "angle_rad,range_m"
 _POSE_KEYS = ("pose_x_m", "pose_y_m", "pose_yaw_rad", "stamp_s")
+_META_KEYS = frozenset((*_POSE_KEYS, "range_max_m", "range_min_m"))
 _ANGLE_LIMIT_RAD = 2.0 * math.pi  # beyond this (or a wider span) the angles are taken to be degrees
 
 
@@ -37,7 +39,18 @@ class ScanFileError(ValueError):
 
 
 def save_scan_csv(scan: LaserScan, path: str | Path) -> Path:
-    """Write ``scan`` to ``path`` (parents created). Returns the path."""
+    """Write ``scan`` to ``path`` (parents created) in the form :func:`load_scan_csv` reads back: a
+    clockwise scan (negative increment) is written in ascending angle order, and a ``-inf`` range (no
+    return) as ``inf``. Raises ValueError for fewer than 2 beams or a negative range. Returns the path."""
+    n = len(scan.ranges_m)
+    if n < 2:
+        raise ValueError(f"a scan file needs at least 2 beams, the scan has {n}")
+    angles = np.asarray(scan.angles_rad, dtype=float)
+    ranges = np.where(np.isneginf(scan.ranges_m), np.inf, np.asarray(scan.ranges_m, dtype=float))
+    if np.any(ranges < 0):
+        raise ValueError(f"negative range {float(ranges[ranges < 0][0])!r} in the scan")
+    if scan.angle_increment_rad < 0:
+        angles, ranges = angles[::-1], ranges[::-1]
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     lines = ["# agnav-scan v1"]
@@ -49,7 +62,7 @@ def save_scan_csv(scan: LaserScan, path: str | Path) -> Path:
         meta.append(f"range_max_m={float(scan.range_max_m)!r}")
     lines.append("# " + ",".join(meta))
     lines.append(HEADER)
-    for a, r in zip(scan.angles_rad, scan.ranges_m):
+    for a, r in zip(angles, ranges):
         lines.append(f"{float(a)!r},{float(r)!r}")
     p.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return p
@@ -79,7 +92,8 @@ def load_scan_csv(path: str | Path) -> LaserScan:
             continue
         if line.startswith("#"):
             body = line[1:].strip()
-            if "=" in body:
+            keys = {item.split("=", 1)[0].strip() for item in body.split(",") if "=" in item}
+            if keys & _META_KEYS:  # a metadata line (any other comment line is free text)
                 for item in body.split(","):
                     if "=" not in item:
                         raise ScanFileError(f"{p}:{n}: bad metadata item {item.strip()!r} (expected key=value)")

@@ -346,7 +346,8 @@ class _RowFaceMap:
             fx, fy = self._to_frame(self.fit_pose, odo)
             sel &= np.abs(fy - np.polynomial.polynomial.polyval(fx, self.coef)) < p.gate_m
         else:  # first scan: gate by a single-scan fit of the near face
-            est = detect_single_row(pts, p.side)
+            # look for the face out to a metre beyond where it should be (at least the 2.5 m default)
+            est = detect_single_row(pts, p.side, max_lateral_m=max(2.5, p.distance_m - p.row_half_width_m + 1.0))
             if est is None:
                 return
             b0 = -math.tan(est.heading_rad)
@@ -653,7 +654,9 @@ class RowNavigator:
         p = self.params
         if self.phase == "follow":
             cmd = self.follower.step(obs)
-            est = self.follower.last
+            # only a fresh detection counts towards the row's end: a control step without a scan repeats
+            # nothing (the follower keeps its last estimate for other uses)
+            est = self.follower.last if obs.scan is not None else None
             st = self.follower.state
             if est is not None and self.end.update(est.fill) and st is not None:
                 e, psi = st

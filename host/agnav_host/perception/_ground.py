@@ -198,30 +198,45 @@ def terrain_roughness(grid: FloatArray, window: int = 3) -> FloatArray:
 
 class GroundTracker:
     """Keeps the last ``lines`` tilted scans (as world-frame 3-D points through the robot pose) so the
-    roughness of :func:`terrain_roughness` can be computed across scan lines as the robot moves."""
+    roughness of :func:`terrain_roughness` can be computed across scan lines as the robot moves.
 
-    def __init__(self, tm: TiltedMount, params: GroundParams | None = None, lines: int = 3, window: int = 3) -> None:
+    A scan becomes a new line only once the robot has moved ``min_line_m`` since the last line: two
+    lines taken from one spot differ by range noise alone, which makes every normal the laser plane's
+    own and the ground read as smooth whatever it is. Until the robot has moved, the roughness is NaN
+    (unknown); while it stands, the last line's roughness is repeated."""
+
+    def __init__(self, tm: TiltedMount, params: GroundParams | None = None, lines: int = 3, window: int = 3,
+                 min_line_m: float = 0.02) -> None:
         if lines < 2:
             raise ValueError("GroundTracker needs at least 2 lines")
         self.tm, self.params, self.lines, self.window = tm, params or GroundParams(), lines, window
-        self._hist: list[FloatArray] = []
+        self.min_line_m = min_line_m
+        self.reset()
 
     def reset(self) -> None:
-        self._hist = []
+        self._hist: list[FloatArray] = []
+        self._line_xy: tuple[float, float] | None = None  # robot position at the last line
+        self._rough: FloatArray | None = None
 
     def update(self, scan: LaserScan, robot_pose: Pose2D) -> tuple[GroundObstacles, FloatArray]:
-        """Classify ``scan`` and return it with the roughness (n,) of its line (NaN until 2 lines are in)."""
+        """Classify ``scan`` and return it with the roughness (n,) of its line (NaN until the robot has
+        moved over 2 lines, or for a scan of fewer than 2 beams)."""
         obs = detect_ground_obstacles(scan, self.tm, self.params)
         pts = ground_points(scan, self.tm)
         c, s = math.cos(robot_pose.yaw_rad), math.sin(robot_pose.yaw_rad)
         world = np.column_stack((robot_pose.x_m + c * pts[:, 0] - s * pts[:, 1], robot_pose.y_m + s * pts[:, 0] + c * pts[:, 1], pts[:, 2]))
-        if self._hist and len(self._hist[-1]) != len(world):
-            self._hist = []
-        self._hist = (self._hist + [world])[-self.lines:]
-        if len(self._hist) < 2:
+        if len(world) < 2:
             return obs, np.full(len(world), np.nan)
-        rough = terrain_roughness(np.stack(self._hist), self.window)[-1]
-        return obs, rough
+        if self._hist and len(self._hist[-1]) != len(world):
+            self.reset()
+        xy = (robot_pose.x_m, robot_pose.y_m)
+        if self._line_xy is None or math.hypot(xy[0] - self._line_xy[0], xy[1] - self._line_xy[1]) >= self.min_line_m:
+            self._line_xy = xy
+            self._hist = (self._hist + [world])[-self.lines:]
+            self._rough = terrain_roughness(np.stack(self._hist), self.window)[-1] if len(self._hist) >= 2 else None
+        if self._rough is None:
+            return obs, np.full(len(world), np.nan)
+        return obs, self._rough.copy()
 
 
 class GroundObstacleMap:
@@ -288,14 +303,27 @@ def scan_with_virtual_obstacles(scan: LaserScan, sensor_pose: Pose2D, points_xy:
     bearing = np.arctan2(ly, lx)
     half = np.arcsin(np.clip(radius_m / dist, 0.0, 1.0))
     inc = scan.angle_increment_rad
-    lo = np.ceil((bearing - half - scan.angle_min_rad) / inc).astype(int)
-    hi = np.floor((bearing + half - scan.angle_min_rad) / inc).astype(int)
+    if inc == 0.0:
+        return scan
+    # beam k looks along a0 + k inc; work on an ascending copy (a clockwise laser: angles negated) and take
+    # each post's bearing relative to the first beam in [0, 2 pi), and once more a turn lower and a turn
+    # higher, so that a post across the scan's seam (a full-circle laser, or any start angle) gets its
+    # beams on both sides
+    sgn = 1.0 if inc > 0 else -1.0
+    rel0 = np.mod(sgn * (bearing - scan.angle_min_rad), 2.0 * math.pi)
+    rel = np.concatenate((rel0 - 2.0 * math.pi, rel0, rel0 + 2.0 * math.pi))
+    half2 = np.tile(half, 3)
+    post = np.tile(np.arange(len(bearing)), 3)
+    step = abs(inc)
+    lo = np.ceil((rel - half2) / step).astype(int)
+    hi = np.floor((rel + half2) / step).astype(int)
     lo, hi = np.clip(lo, 0, n), np.clip(hi, -1, n - 1)
     width = np.maximum(hi - lo + 1, 0)
     if width.sum() == 0:
         return scan
-    owner = np.repeat(np.arange(len(lo)), width)
-    beam = lo[owner] + (np.arange(width.sum()) - np.repeat(np.cumsum(width) - width, width))
+    rows = np.repeat(np.arange(len(lo)), width)
+    owner = post[rows]
+    beam = lo[rows] + (np.arange(width.sum()) - np.repeat(np.cumsum(width) - width, width))
     # range to the post's near side along each beam: d cos(b) - sqrt(R^2 - d^2 sin^2(b)), b = beam - bearing
     db = scan.angle_min_rad + inc * beam - bearing[owner]
     along = dist[owner] * np.cos(db)

@@ -89,6 +89,7 @@ class LaserWatchdog:
     def reset(self) -> None:
         self._prev: LaserScan | None = None
         self._last_rx_s: float | None = None
+        self._first_t_s: float | None = None  # the first update: a laser that never delivers is timed from here
         self._bad = 0
         self._good = 0
         self._same = 0
@@ -104,10 +105,13 @@ class LaserWatchdog:
 
     def update(self, scan: LaserScan | None, t_s: float) -> LaserHealth:
         p = self.p
+        if self._first_t_s is None:
+            self._first_t_s = t_s
         if scan is None:
-            if self._last_rx_s is not None and t_s - self._last_rx_s > p.max_gap_s:
+            since = self._last_rx_s if self._last_rx_s is not None else self._first_t_s
+            if t_s - since > p.max_gap_s:
                 self._good = 0
-                self._fault(f"no scan for {t_s - self._last_rx_s:.1f} s", t_s)
+                self._fault(f"no scan for {t_s - since:.1f} s" + ("" if self._last_rx_s is not None else " (none yet)"), t_s)
             return self.health
         self._last_rx_s = t_s
         why = scan_anomaly(scan, self._prev, p)

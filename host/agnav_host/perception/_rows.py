@@ -259,12 +259,16 @@ def _rows_offset(pts: ScanPoints, p: RowParams) -> RowEstimate:
     ``-(c_l + c_r) / 2`` here. The method does not observe the heading (the reference steers on the
     offset alone, eq. 2): ``heading_rad`` is 0 and ``heading_observed`` False.
     """
-    half = 0.5 * p.readings_per_side * pts.angle_increment_rad
+    half = 0.5 * p.readings_per_side * abs(pts.angle_increment_rad)
     close = pts.ranges_m <= p.offset_max_range_m
+    # the beams' bearings in the robot frame about the laser (whatever its mounting yaw, its sense of
+    # rotation or where its angles start)
+    bearing = np.arctan2(pts.xy[:, 1] - pts.mount.y_m, pts.xy[:, 0] - pts.mount.x_m)
     cs: list[float | None] = []
     ns: list[int] = []
     for sign in (1.0, -1.0):
-        sel = close & (np.abs(pts.angles_rad - sign * math.pi / 2) <= half + 1e-9)
+        off = np.mod(bearing - sign * math.pi / 2 + math.pi, 2.0 * math.pi) - math.pi
+        sel = close & (np.abs(off) <= half + 1e-9)
         ns.append(int(sel.sum()))
         cs.append(float(pts.xy[sel, 1].mean()) if ns[-1] >= p.min_points_per_side else None)
     (cl, cr), (nl, nr) = cs, ns
@@ -324,6 +328,10 @@ def _rows_triangle(pts: ScanPoints, p: RowParams) -> RowEstimate:
     """
     xy = pts.xy[pts.ranges_m <= p.triangle_max_range_m]
     o = np.array([pts.mount.x_m, pts.mount.y_m])
+    # consecutive in bearing about the laser, from behind on the right round to behind on the left: the
+    # beam order, whatever the laser's sense of rotation or where its angles start (a full-circle laser
+    # whose angles run 0..2 pi has its seam straight ahead)
+    xy = xy[np.argsort(np.arctan2(xy[:, 1] - o[1], xy[:, 0] - o[0]), kind="stable")]
     best: tuple[float, float, float] | None = None  # (|bearing|, mx, my)
     if len(xy) >= 2:
         p1, p2 = xy[:-1], xy[1:]

@@ -2,8 +2,11 @@
 
 A beam is dropped when its range is NaN, inf or 0 (no return), outside ``[min_range_m, max_range_m]``,
 or a mixed pixel. A mixed pixel is a beam that straddled an edge and reports a blend of the
-foreground and background ranges: its range lies strictly between its two neighbours' ranges and
-its point is more than ``mixed_jump_m`` from both neighbouring points.
+foreground and background ranges: its range lies strictly between its two neighbours' ranges, its
+point is more than ``mixed_jump_m`` from both neighbouring points, and on at least one side the range
+then levels off (the next step out is less than half the step into the beam: the foreground or the
+background surface). The last test keeps a smooth surface seen at a grazing angle (a wall, a hedge
+face far ahead), whose ranges climb steadily from beam to beam with points as far apart as an edge's.
 """
 
 from __future__ import annotations
@@ -67,7 +70,13 @@ def mixed_pixel_mask(angles_rad: FloatArray, ranges_m: FloatArray, jump_m: float
         d_prev = np.hypot(x[1:-1] - x[:-2], y[1:-1] - y[:-2])
         d_next = np.hypot(x[1:-1] - x[2:], y[1:-1] - y[2:])
         between = (r[1:-1] - r[:-2]) * (r[2:] - r[1:-1]) > 0
-        out[1:-1] = between & (d_prev > jump_m) & (d_next > jump_m)
+        # steps into the beam from each side, and the next step out on that side (unknown at the scan's
+        # ends and next to a beam without a return: then that side does not count as level)
+        d_in_prev, d_in_next = np.abs(r[1:-1] - r[:-2]), np.abs(r[2:] - r[1:-1])
+        d_out_prev = np.abs(np.concatenate(([np.nan], r[1:-2] - r[:-3])))
+        d_out_next = np.abs(np.concatenate((r[3:] - r[2:-1], [np.nan])))
+        level = (d_out_prev < 0.5 * d_in_prev) | (d_out_next < 0.5 * d_in_next)
+        out[1:-1] = between & (d_prev > jump_m) & (d_next > jump_m) & level
     return out
 
 

@@ -84,13 +84,20 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
     pose = scan.pose if (world and scan.pose is not None) else Pose2D()
     pts = points_from_scan(scan, pose, ScanParams())
     n = len(scan.ranges_m)
-    at_edge = (pts.index <= 1) | (pts.index >= n - 2)
+    # a full-circle laser has no edge of view: its last beam sits beside its first
+    full_circle = n > 2 and abs(scan.angle_increment_rad) * n >= 2.0 * math.pi - 0.5 * abs(scan.angle_increment_rad)
+    at_edge = np.zeros(len(pts.index), dtype=bool) if full_circle else (pts.index <= 1) | (pts.index >= n - 2)
     # a neighbouring beam returned from well in front: the object is partly hidden behind another
     r = np.where(np.isfinite(scan.ranges_m) & (scan.ranges_m > 0), scan.ranges_m, np.inf)
-    rp = np.concatenate(([np.inf], r, [np.inf]))
+    rp = np.concatenate(([r[-1] if full_circle else np.inf], r, [r[0] if full_circle else np.inf]))
     near_nb = np.minimum(rp[pts.index], rp[pts.index + 2])
     at_edge |= near_nb < pts.ranges_m - 0.3
-    return cluster_points(pts.xy, (pose.x_m, pose.y_m), gap_m, min_points, max_radius_m, scan.range_max_m,
+    xy = pts.xy
+    if full_circle and len(xy) > 2 and float(np.hypot(*(xy[0] - xy[-1]))) <= gap_m:
+        # an object across the seam: start the beam order after the widest gap instead, so it stays whole
+        k = int(np.argmax(np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1])))) + 1
+        xy, at_edge = np.roll(xy, -k, axis=0), np.roll(at_edge, -k)
+    return cluster_points(xy, (pose.x_m, pose.y_m), gap_m, min_points, max_radius_m, scan.range_max_m,
                           at_view_edge=at_edge)
 
 
