@@ -73,10 +73,13 @@ class ApfParams:
     contour_look_m: float = 1.0
     contour_margin_m: float = 0.08
     contour_side_cost_rad: float = math.radians(60.0)
+    creep_m_s: float = 0.05  # the least speed towards a goal tighter than d_min_m, once inside d_min_m
 
     def __post_init__(self) -> None:
         if not (self.katt > 0 and self.d_min_m >= 0 and self.ka > 0 and self.krep >= 0 and self.d_obs_threshold_m > 0):
             raise ValueError("ApfParams: katt > 0, d_min >= 0, Ka > 0, krep >= 0, d_obs_threshold > 0")
+        if not (self.backoff_speed_m_s > 0 and self.backoff_m >= 0 and self.creep_m_s > 0):
+            raise ValueError("ApfParams: backoff_speed_m_s > 0, backoff_m >= 0, creep_m_s > 0")
         if not 0 < self.alpha_max_rad <= math.pi:
             raise ValueError("ApfParams.alpha_max_rad must be in (0, pi]")
 
@@ -170,6 +173,10 @@ class ApfPlanner:
         tol = getattr(obs.goal, "tolerance_m", None)
         d_min = min(p.d_min_m, 0.8 * tol) if tol else p.d_min_m
         u = apf_linear(d, p.katt, self.umax, d_min, self.d_max)
+        if d_min < d < p.d_min_m:
+            # inside ref 001's own tolerance the quadratic speed falls below what the wheels turn at
+            # (0.02 m/s at 0.2 m): creep the last centimetres instead of parking short of the goal
+            u = max(u, p.creep_m_s, spec.min_speed_m_s)
         r, spin = apf_angular(alpha_eff, d_obs, sign, p.ka, p.krep, p.alpha_max_rad, self.r_max)
         if spin:
             u = 0.0

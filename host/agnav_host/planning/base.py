@@ -140,14 +140,16 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float) -> D
     """A (speed, yaw rate) wish turned into the robot's command, limits applied.
 
     Differential drive: speed and yaw rate clipped. Ackermann: the yaw rate becomes the virtual
-    front-wheel angle ``atan(L w / v)`` (no turning on the spot: a stop keeps the wheel angle)."""
+    front-wheel angle ``atan(L w / v)`` (no turning on the spot: |v| is taken as at least 0.2 m/s for
+    the angle, a stop steering like a slow forward move; reversing, the angle changes sign so that the
+    yaw rate keeps the asked sign)."""
     v = clip(speed_m_s, -spec.max_speed_m_s, spec.max_speed_m_s)
     w = clip(yaw_rate_rad_s, -spec.max_yaw_rate_rad_s, spec.max_yaw_rate_rad_s)
     if spec.kinematics == "diff_drive":
         return DriveCommand(v, w)
     if v > 0.0:
         v = max(v, spec.min_speed_m_s)
-    steer = math.atan2(spec.wheelbase_m * w, max(abs(v), 0.2))
+    steer = math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2))
     return DriveCommand(v, 0.0, clip(steer, -spec.max_steer_rad, spec.max_steer_rad))
 
 
@@ -217,9 +219,12 @@ def local_view(obs: Observation, spec: RobotSpec, use_laser: bool = True, use_so
         a, ca, sa = _trig(scan.angle_min_rad, scan.angle_increment_rad, len(r))
         k = int(resolution_rad / abs(scan.angle_increment_rad) + 1e-9) if scan.angle_increment_rad else 1
         if k > 1 and len(r) >= k:
-            m = (len(r) // k) * k
-            g = np.where(np.isfinite(r[:m]) & (r[:m] > 0.0), r[:m], np.inf).reshape(-1, k)
-            pick = np.arange(0, m, k) + g.argmin(axis=1)
+            # nearest return of each group of k beams; the last group may be short (padded with no return)
+            m = -(-len(r) // k) * k
+            rr = np.full(m, np.inf)
+            rr[:len(r)] = np.where(np.isfinite(r) & (r > 0.0), r, np.inf)
+            g = rr.reshape(-1, k)
+            pick = np.minimum(np.arange(0, m, k) + g.argmin(axis=1), len(r) - 1)
             r, a, ca, sa = r[pick], a[pick], ca[pick], sa[pick]
         sp = scan.pose if scan.pose is not None else obs.pose
         # sensor pose relative to the robot reference point, robot frame

@@ -71,6 +71,8 @@ class FlbParams:
     def __post_init__(self) -> None:
         if not 0.0 <= self.trsh <= 1.0:
             raise ValueError(f"FlbParams.trsh must be in [0, 1], got {self.trsh}")
+        if not self.slow_radius_m > 0:
+            raise ValueError(f"FlbParams.slow_radius_m must be > 0, got {self.slow_radius_m}")
         if not (self.turn_time_s > 0 and self.horizon_m > 0 and 0 < self.sector_rad < math.pi / 2):
             raise ValueError("FlbParams: turn_time_s, horizon_m must be > 0 and sector_rad in (0, 90 deg)")
         if not (self.steer_distance_m > 0 and self.keep_bonus >= 0):
@@ -168,8 +170,9 @@ class FlbPlanner:
         c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
         near = xy[np.hypot(xy[:, 0], xy[:, 1]) < p.memory_range_m]
         fresh = (obs.t_s - self._mem_stamp[:, 0] <= p.memory_s) & (self._odometer - self._mem_stamp[:, 1] <= p.memory_distance_m)
-        world = np.column_stack((obs.pose.x_m + c * near[:, 0] - s * near[:, 1],
-                                 obs.pose.y_m + s * near[:, 0] + c * near[:, 1]))
+        nx = near[:, 0] + self.spec.footprint_offset_m  # the view is about the footprint's centre, the pose the reference point
+        world = np.column_stack((obs.pose.x_m + c * nx - s * near[:, 1],
+                                 obs.pose.y_m + s * nx + c * near[:, 1]))
         stamp = np.tile([obs.t_s, self._odometer], (len(near), 1))
         self._mem_xy = np.concatenate((self._mem_xy[fresh], world))
         self._mem_stamp = np.concatenate((self._mem_stamp[fresh], stamp))
@@ -187,12 +190,13 @@ class FlbPlanner:
             return self._mem_xy
         c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
         dx, dy = self._mem_xy[:, 0] - obs.pose.x_m, self._mem_xy[:, 1] - obs.pose.y_m
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        off = self.spec.footprint_offset_m
+        lx, ly = c * dx + s * dy - off, -s * dx + c * dy  # about the footprint's centre, like the view
         mount_x = 0.0
         if obs.scan is not None and obs.scan.pose is not None:
             mx, my = obs.scan.pose.x_m - obs.pose.x_m, obs.scan.pose.y_m - obs.pose.y_m
             mount_x = c * mx + s * my
-        keep = (lx < mount_x) & (lx > -self.spec.radius_m)
+        keep = (lx < mount_x - off) & (lx > -self.spec.radius_m)
         return np.column_stack((lx[keep], ly[keep]))
 
     def yaw_rate(self, turn_rad: float, speed_m_s: float, front_clearance_m: float) -> float:

@@ -81,7 +81,7 @@ class PathFollower:
             raise NoPathFound("a path needs two distinct points")
         cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
         s = np.arange(0.0, cum[-1], p.ds_m)
-        s = np.append(s, cum[-1])
+        s = np.append(s[s < cum[-1] - 1e-6], cum[-1])  # no zero-length last step (it would spoil the end heading)
         self.path = np.column_stack((np.interp(s, cum, xy[:, 0]), np.interp(s, cum, xy[:, 1])))
         self.s_arr = s
         g = np.gradient(self.path, axis=0)
@@ -139,6 +139,10 @@ class PathFollower:
         return self.v_r, self.w_r
 
 
+#: the largest map window follow-path makes for a far goal, m (4000 x 4000 cells of 0.1 m: 16 MB)
+MAX_GRID_M = 400.0
+
+
 @dataclass(frozen=True)
 class FollowPathParams:
     follower: PathFollowerParams = PathFollowerParams()
@@ -178,6 +182,27 @@ class FollowPathPlanner:
         self.plan_failures = 0
         self._n_scans = 0
 
+    def _grid_covers(self, x_m: float, y_m: float, margin_m: float = 1.0) -> bool:
+        g = self.grid
+        if g is None:
+            return False
+        size = g.n * g.res
+        return g.x0 + margin_m <= x_m <= g.x0 + size - margin_m and g.y0 + margin_m <= y_m <= g.y0 + size - margin_m
+
+    def _new_grid(self, obs: Observation) -> OccupancyGrid:
+        """The map's window: ``grid_size_m`` centred on the robot when the goal lies inside it (a metre from
+        its edge); otherwise large enough for both with 10 m to spare around them (at most
+        ``MAX_GRID_M``), centred between them. A goal outside the map would leave A* without a path, and the
+        robot on the straight line to the goal through whatever is in the way. A new goal outside the
+        window starts a new map."""
+        p = self.params
+        sx, sy, gx, gy = obs.pose.x_m, obs.pose.y_m, obs.goal.x_m, obs.goal.y_m
+        half = 0.5 * p.grid_size_m - 1.0
+        if abs(gx - sx) <= half and abs(gy - sy) <= half:
+            return OccupancyGrid((sx, sy), p.grid_size_m, p.grid_res_m)
+        size = min(max(p.grid_size_m, max(abs(gx - sx), abs(gy - sy)) + 20.0), MAX_GRID_M)
+        return OccupancyGrid((0.5 * (sx + gx), 0.5 * (sy + gy)), size, p.grid_res_m)
+
     def _replan(self, obs: Observation) -> None:
         assert self.grid is not None
         start = (obs.pose.x_m, obs.pose.y_m)
@@ -203,8 +228,8 @@ class FollowPathPlanner:
                 self._given = np.asarray(given, dtype=float)
                 self.follower.set_path(self._given)
         else:
-            if self.grid is None:
-                self.grid = OccupancyGrid((obs.pose.x_m, obs.pose.y_m), p.grid_size_m, p.grid_res_m)
+            if self.grid is None or not self._grid_covers(obs.goal.x_m, obs.goal.y_m):
+                self.grid = self._new_grid(obs)
             if obs.scan is not None:
                 v = local_view(obs, spec)
                 c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)

@@ -8,8 +8,9 @@ the robot (Khatib's field). The sum gives the direction to drive; the robot turn
 
 Potential fields stall where the forces cancel (in front of a wall facing the goal) and weave in
 corridors; as an escape, when the robot has made less than ``stall_progress_m`` progress towards the
-goal for ``stall_s``, a tangential force along the nearest obstacle (on the goal's side) is added for
-``escape_s``. In ref 000 "PBF" names a preference-based fuzzy method; the issue asks for a
+goal for ``stall_s``, a tangential force along the obstacles is added for ``escape_s``: towards the
+side their repulsion already pushes the robot to (the nearer end of a wall faced off-centre), or,
+facing them square, towards the goal's side. In ref 000 "PBF" names a preference-based fuzzy method; the issue asks for a
 potential-field planner under this name, and it plays the same role in the comparison.
 """
 
@@ -43,6 +44,8 @@ class PbfParams:
     def __post_init__(self) -> None:
         if not (self.k_att > 0 and self.k_rep >= 0 and self.d0_m > 0 and self.min_clearance_m > 0):
             raise ValueError("PbfParams: k_att > 0, k_rep >= 0, d0 > 0, min_clearance > 0")
+        if not self.slow_radius_m > 0:
+            raise ValueError(f"PbfParams.slow_radius_m must be > 0, got {self.slow_radius_m}")
 
 
 def field_force(xy: np.ndarray, radius_m: float, goal_rad: float, p: PbfParams) -> tuple[float, float, float, float]:
@@ -91,15 +94,22 @@ class PbfPlanner:
             self._since_progress += dt
         if self._escape_left <= 0.0 and self._since_progress >= p.stall_s:
             self._escape_left = p.escape_s
-            self._escape_sign = 1.0 if g_rel >= 0 else -1.0
+            # round the obstacle on the side its field already pushes the robot to (the nearer end of a
+            # wall faced off-centre); facing it square, on the goal's side
+            n0 = math.hypot(rx, ry)
+            if n0 > 1e-9 and abs(ry) > 0.1 * n0:
+                self._escape_sign = math.copysign(1.0, ry)
+            else:
+                self._escape_sign = 1.0 if g_rel >= 0 else -1.0
             self._since_progress = 0.0
             self._best_d = d_goal
         if self._escape_left > 0.0:
             self._escape_left -= dt
             n = math.hypot(rx, ry)
-            if n > 1e-9:  # tangent to the repulsion, on the chosen side
-                fx += p.k_tan * self._escape_sign * (-ry / n)
-                fy += p.k_tan * self._escape_sign * (rx / n)
+            if n > 1e-9:  # tangent to the repulsion, on the chosen side: the repulsion turned clockwise is
+                # its left-hand tangent (an obstacle ahead pushes back, -x; turned clockwise: +y, left)
+                fx += p.k_tan * self._escape_sign * (ry / n)
+                fy += p.k_tan * self._escape_sign * (-rx / n)
         heading = math.atan2(fy, fx)
         w = p.yaw_gain * heading
         if abs(heading) > p.turn_in_place_rad:

@@ -177,9 +177,11 @@ class SubsumptionPlanner:
         self._timer_end = [-math.inf, -math.inf]  # [left, right]
 
     # ---- layers ------------------------------------------------------------------------------
-    def _goal(self, dist: float, err: float) -> tuple[float, float, Reason]:
+    def _goal(self, dist: float, err: float, mission_tol_m: float | None = None) -> tuple[float, float, Reason]:
         p = self.params
-        if dist <= p.goal_tol_m:
+        # the layer's own 0.1 m, or less for a mission goal that asks for less (stop inside it)
+        tol = min(p.goal_tol_m, 0.8 * mission_tol_m) if mission_tol_m else p.goal_tol_m
+        if dist <= tol:
             return 0.0, 0.0, Reason.GOAL_REACHED
         speed = p.goal_speed_m_s if dist >= p.goal_slow_m else p.goal_speed_m_s * dist / p.goal_slow_m
         if abs(err) > math.radians(60.0):
@@ -282,7 +284,7 @@ class SubsumptionPlanner:
         valid = np.isfinite(raw) & (raw > 0)
         rng = np.where(valid, raw, spec.sonar_max_range_m)  # NO_ECHO carries the detection range
         dist, err = goal_in_robot_frame(obs)
-        steer, speed, reason = self._goal(dist, norm_angle_rad(err))
+        steer, speed, reason = self._goal(dist, norm_angle_rad(err), getattr(obs.goal, "tolerance_m", None))
         layer = Layer.MOVE_TO_GOAL
         if p.follow_wall:
             w = self._wall(obs.t_s, rng, valid, err)

@@ -49,6 +49,10 @@ class VfhParams:
     def __post_init__(self) -> None:
         if not (8 <= self.n_sectors <= 720 and self.window_m > 0 and 0 <= self.tau_low <= self.tau_high and self.s_max >= 1):
             raise ValueError("VfhParams: need 8 <= n_sectors <= 720, window > 0, 0 <= tau_low <= tau_high, s_max >= 1")
+        if not 0 <= self.smooth < self.n_sectors // 2:
+            raise ValueError(f"VfhParams.smooth must be in [0, n_sectors / 2), got {self.smooth} for {self.n_sectors} sectors")
+        if not self.slow_radius_m > 0:
+            raise ValueError(f"VfhParams.slow_radius_m must be > 0, got {self.slow_radius_m}")
 
 
 def polar_histogram(xy: FloatArray, n: int, window_m: float, enlarge_m: float, smooth: int) -> FloatArray:
