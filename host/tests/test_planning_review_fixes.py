@@ -140,3 +140,27 @@ def test_flb_remembers_returns_where_they_are_for_a_car_like_robot():
 def test_planner_parameters_that_would_divide_by_zero_are_refused(make):
     with pytest.raises(ValueError):
         make()
+
+
+def test_him_memory_counts_as_out_of_view_only_outside_the_lasers_beams():
+    from agnav_host.planning.base import LocalView
+    from agnav_host.planning.him import HimPlanner
+
+    spec = RobotSpec()
+    empty = LocalView(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0))
+    n = 360
+    for a0, inc, n_beams, point, blind in [
+        (0.0, 2.0 * math.pi / n, n, (0.0, -1.0), False),  # full circle numbered 0..2 pi: the right side is seen
+        (-math.pi, 2.0 * math.pi / n, n, (0.0, -1.0), False),
+        (math.radians(-135.0), math.radians(1.0), 271, (-1.0, 0.0), True),  # straight behind a 270 deg laser
+        (math.radians(135.0), math.radians(-1.0), 271, (-1.0, 0.0), True),  # the same laser turning clockwise
+        (math.radians(135.0), math.radians(-1.0), 271, (0.0, -1.0), False),
+    ]:
+        pl = HimPlanner(spec)
+        pl.reset()
+        pl._mem_xy = np.array([point])
+        pl._mem_t = np.zeros(1)
+        scan = LaserScan(a0, inc, np.full(n_beams, np.inf), 10.0, 0.0, Pose2D())
+        obs = Observation(0.0, Pose2D(), 0.0, 0.0, Goal(5.0, 0.0), scan, None, {})
+        out = pl._wide_view(obs, empty, trapped=True)
+        assert (len(out.xy) == 1) is blind, (a0, inc, point)

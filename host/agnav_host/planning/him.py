@@ -148,9 +148,12 @@ class HimPlanner:
                 my = -s * (sp.x_m - obs.pose.x_m) + c * (sp.y_m - obs.pose.y_m)
                 dyaw = norm_angle_rad(sp.yaw_rad - obs.pose.yaw_rad)
                 a = norm_angle_arr(np.arctan2(ly - my, lx - mx) - dyaw)
-                a0 = scan.angle_min_rad
-                a1 = a0 + scan.angle_increment_rad * (len(scan.ranges_m) - 1)
-                blind = (a < min(a0, a1)) | (a > max(a0, a1))
+                # outside the beams' span, measured from the first beam in the laser's own sense of turn
+                # (any start angle: a full-circle laser's 0..2 pi too)
+                inc = scan.angle_increment_rad
+                span = abs(inc) * (len(scan.ranges_m) - 1)
+                rel = np.mod((a - scan.angle_min_rad) * (1.0 if inc >= 0 else -1.0), 2.0 * math.pi)
+                blind = rel > span + 1e-9
             extra = np.column_stack((lx[blind], ly[blind]))
         self._steps += 1
         if p.memory_s > 0.0 and self._steps % 3 == 1:  # every third scan is plenty
