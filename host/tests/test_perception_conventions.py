@@ -191,3 +191,17 @@ def test_scan_files_round_trip_and_comments_are_free_text(tmp_path):
     f.write_text("# range_max_m=eight\nangle_rad,range_m\n0.0,1.0\n0.1,2.0\n")
     with pytest.raises(ScanFileError, match="range_max_m is not a number"):
         load_scan_csv(f)
+
+
+def test_tracker_skips_a_scan_older_than_the_last_one():
+    from agnav_host.perception import Cluster, ObstacleTracker
+
+    tr = ObstacleTracker()
+    for k in range(6):  # a walker at 0.5 m/s along +y
+        tr.update_clusters([Cluster(2.0, 0.05 * k, 0.2, 10)], 0.1 * k)
+    before = tr.tracks()
+    late = tr.update_clusters([Cluster(2.0, 0.0, 0.2, 10)], 0.25)  # an old scan arriving late
+    assert tr.stale_scans == 1
+    assert [(t.x_m, t.y_m, t.vy_m_s) for t in late] == [(t.x_m, t.y_m, t.vy_m_s) for t in before]
+    after = tr.update_clusters([Cluster(2.0, 0.30, 0.2, 10)], 0.6)
+    assert after[0].vy_m_s == pytest.approx(0.5, abs=0.1)

@@ -191,6 +191,8 @@ class ObstacleTracker:
     def reset(self) -> None:
         self._tracks: list[_KF] = []
         self._next = 1
+        self._last_t: float | None = None
+        self.stale_scans = 0  # scans older than the last one processed, skipped
 
     def update(self, scan: LaserScan, t_s: float | None = None) -> list[Track]:
         p = self.params
@@ -199,7 +201,14 @@ class ObstacleTracker:
         return self.update_clusters([c for c in cl if not c.cut], t)
 
     def update_clusters(self, clusters: list[Cluster], t_s: float) -> list[Track]:
+        """Fold one scan's clusters in at time ``t_s``; a scan older than the last one folded in (late,
+        out of order) is skipped and counted in ``stale_scans``: predicting back in time would wind
+        the tracks' clocks back and count the next interval twice."""
         p = self.params
+        if self._last_t is not None and t_s < self._last_t:
+            self.stale_scans += 1
+            return self.tracks()
+        self._last_t = t_s
         for tr in self._tracks:
             tr.predict(t_s, p.accel_std_m_s2)
         R = np.eye(2) * p.meas_std_m**2
