@@ -63,7 +63,7 @@ def test_key_push_sets_the_key_and_a_later_unsigned_push_is_refused(sil_server, 
     common = ["--device", sil_server, "--no-tlog", "--wait", "10", "--timeout", "1.0"]
     assert main(["key", "push", "--key-file", str(k1), *common]) == 0, capsys.readouterr().err
     out = capsys.readouterr().out
-    assert "set; it answered" in out, out
+    assert "set; it refuses unsigned requests and answered one signed accordingly" in out, out
     # 10 simulated s later (2.5 s of wall time at 4x) the provisioning window is closed: an unsigned
     # change is refused, so requests signed with the new key go unanswered.
     import time
@@ -72,3 +72,20 @@ def test_key_push_sets_the_key_and_a_later_unsigned_push_is_refused(sil_server, 
     assert main(["key", "push", "--key-file", str(k2), *common]) != 0
     # Signed with the key the robot holds, the change is taken.
     assert main(["key", "push", "--key-file", str(k2), "--old-key-file", str(k1), *common]) == 0
+
+
+def test_key_push_to_a_keyless_robot_after_its_window_is_refused(sil_server, tmp_path, capsys):
+    # A robot without a key answers requests signed with any key: the push must not take that for
+    # success. 12 simulated s after power-on (3 s of wall time at 4x) the unsigned push is refused.
+    import time
+
+    from agnav_host.cli import main
+
+    k1, _ = new_key(tmp_path / "k1.key")
+    common = ["--device", sil_server, "--no-tlog", "--wait", "10", "--timeout", "1.0"]
+    time.sleep(3.0)
+    assert main(["key", "push", "--key-file", str(k1), *common]) == 1
+    err = capsys.readouterr().err
+    assert "did not take the key" in err and "refused SETUP_SIGNING" in err, err
+    # and the robot still takes unsigned requests: nothing was set
+    assert main(["param", "get", "SYSID_THISMAV", "--device", sil_server, "--no-tlog"]) == 0

@@ -217,6 +217,42 @@ def _robot_spec(robot: Any, cfg: Any) -> Any:
 POSE_STALE_S = 0.5
 
 
+class _FirmwareGoal:
+    """A goal for the firmware's move-to-goal layer, and when it counts as reached.
+
+    The layer reports GOAL_REACHED (reason 14) until it gets a new goal, and the goal frame is not
+    acknowledged: a status from before the goal arrived, or a goal lost on the radio, would read as
+    "reached" at once. So GOAL_REACHED counts only when received after the goal was sent and either
+    the layer has been seen seeking this goal since, or the odometry pose is within the robot's own
+    GOAL_TOL_MM of it (a goal where the robot already stands). Until the layer is seen seeking, the
+    goal is sent again every second."""
+
+    RESEND_S = 1.0
+
+    def __init__(self, robot: Any, x_m: float, y_m: float, tol_m: float) -> None:
+        self.robot, self.x_m, self.y_m, self.tol_m = robot, x_m, y_m, tol_m
+        self.seeking = False
+        self._send(time.monotonic())
+
+    def _send(self, now_s: float) -> None:
+        self.robot.set_goal(self.x_m, self.y_m)
+        self.sent_s = now_s
+
+    def reached(self, st: Any, now_s: float) -> bool:
+        b = st.behaviour
+        fresh = b is not None and b.rx_time_s > self.sent_s
+        if fresh and b.reason != 14:
+            self.seeking = True
+        if not self.seeking and now_s - self.sent_s >= self.RESEND_S:
+            self._send(now_s)
+            return False
+        if not (fresh and b.reason == 14):
+            return False
+        p = st.pose
+        near = p is not None and math.hypot(p.x_m - self.x_m, p.y_m - self.y_m) <= self.tol_m + 0.05
+        return self.seeking or near
+
+
 def _pose_fresh(state: Any, now_s: float) -> bool:
     p = state.pose
     return p is not None and now_s - p.rx_time_s <= POSE_STALE_S
@@ -279,6 +315,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         _err("run", "a host planner needs --goal X,Y[,DEG]")
         return 2
     planner = None
+    fw_goal: _FirmwareGoal | None = None
     if planner_name:
         from ..planning.registry import canonical_name
 
@@ -348,7 +385,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
             if planner_name:
                 spec = _robot_spec(robot, cfg)
             elif goal is not None:
-                robot.set_goal(goal.x_m, goal.y_m)
+                fw_goal = _FirmwareGoal(robot, goal.x_m, goal.y_m, robot.param_get("GOAL_TOL_MM") / 1000.0)
         if planner_name:
             from ..planning.registry import make_planner
 
@@ -406,7 +443,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
                     robot.drive(phi, v)
                 if rec is not None and "path" in obs.extras:
                     rec.log_plan(obs.extras["path"])
-            elif st.behaviour is not None and st.behaviour.reason == 14:  # GOAL_REACHED
+            elif fw_goal is not None and fw_goal.reached(st, time.monotonic()):
                 print(f"goal reached (firmware) at t={t:.1f} s")
                 break
             if rec is not None:
@@ -771,8 +808,10 @@ def _cmd_key(ns: argparse.Namespace) -> int:
 
 def _key_push(ns: argparse.Namespace) -> int:
     """Load the key into the robot (SETUP_SIGNING), then prove the robot takes frames signed with it."""
+    from .endpoint import LinkTimeout
     from .keys import CLEAR_KEY, fingerprint, load_key, setup_signing_message
     from .robot import AgnavRobot
+    from .state import _text
 
     new = CLEAR_KEY if ns.clear else load_key(ns.key_file)
     old = load_key(ns.old_key_file) if ns.old_key_file else None
@@ -784,13 +823,31 @@ def _key_push(ns: argparse.Namespace) -> int:
         if old is None:
             print("sending unsigned: the robot accepts this only within 10 s of a power-on or reset "
                   "(opening the USB serial port of a Mega resets it)", file=sys.stderr)
-        ep.send(setup_signing_message(ep.d, new, ep.target_system))
-        time.sleep(0.3)
-        ep.set_signing_key(None if ns.clear else new)
+        with ep.subscribe("STATUSTEXT") as sub:
+            ep.send(setup_signing_message(ep.d, new, ep.target_system))
+            time.sleep(0.3)
+            texts = [_text(m.text) for m in sub.drain()]
         r = AgnavRobot(ep, timeout_s=ns.timeout)
+        refused = next((t for t in texts if t.startswith("refused SETUP_SIGNING")), None)
+        if not ns.clear:
+            # A robot without a key answers frames signed with any key, so a signed answer alone proves
+            # nothing: with the key taken, an unsigned request must go unanswered.
+            ep.set_signing_key(None)
+            try:
+                r.param_get("SYSID_THISMAV")
+            except LinkTimeout:
+                pass
+            else:
+                why = f"it said: {refused}" if refused else "no 'signing: key set' from it"
+                _err("key", f"robot {ep.target_system} did not take the key ({why}); it still answers unsigned "
+                            "requests. An unsigned key is taken only within 10 s of a power-on or reset; a robot that "
+                            "holds a key needs --old-key-file")
+                return 1
+        ep.set_signing_key(None if ns.clear else new)
         r.param_get("SYSID_THISMAV")  # answered only if the robot accepts the new signing state
         what = "signing cleared" if ns.clear else f"key {fingerprint(new)} set"
-        print(f"robot {ep.target_system}: {what}; it answered a request signed accordingly")
+        print(f"robot {ep.target_system}: {what}; it refuses unsigned requests and answered one signed accordingly"
+              if not ns.clear else f"robot {ep.target_system}: {what}; it answered an unsigned request")
         return 0
     finally:
         ep.close()
