@@ -89,3 +89,15 @@ def test_key_push_to_a_keyless_robot_after_its_window_is_refused(sil_server, tmp
     assert "did not take the key" in err and "refused SETUP_SIGNING" in err, err
     # and the robot still takes unsigned requests: nothing was set
     assert main(["param", "get", "SYSID_THISMAV", "--device", sil_server, "--no-tlog"]) == 0
+
+
+def test_require_signed_without_a_key_is_refused_before_connecting(tmp_path, capsys):
+    from agnav_host.cli import main
+
+    cfg = tmp_path / "host.toml"
+    cfg.write_text("[link]\nrequire_signed = true\n")
+    # the device is never opened: the configuration is refused first (exit 2, no tlog left behind)
+    assert main(["param", "get", "LINK_TIMEOUT_MS", "--config", str(cfg), "--device", str(tmp_path / "nowhere"),
+                 "--tlog", str(tmp_path / "t.tlog")]) == 2
+    assert "require_signed = true needs a signing key" in capsys.readouterr().err
+    assert not (tmp_path / "t.tlog").exists()

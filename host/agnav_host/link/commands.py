@@ -136,6 +136,10 @@ def _open(ns: argparse.Namespace, cmd: str, cfg: Any, tlog: Any = _NO_TLOG_YET) 
     key = None
     if ns.sign or lc.signing or ns.key_file:
         key = load_key(ns.key_file or lc.key_file or None)
+    if lc.require_signed and key is None:
+        # without a key pymavlink checks no signature at all: every unsigned frame would still be taken
+        raise ValueError("[link] require_signed = true needs a signing key to check frames with: also set "
+                         "[link] signing = true, or give --sign / --key-file")
     if tlog is _NO_TLOG_YET:
         tlog = _tlog_path(ns, cmd, cfg)
     target = ns.target_system if ns.target_system is not None else lc.target_system
@@ -817,6 +821,7 @@ def _key_push(ns: argparse.Namespace) -> int:
     old = load_key(ns.old_key_file) if ns.old_key_file else None
     cfg = _config(ns)
     ns.sign, ns.key_file = False, None  # the session signs with the OLD key (or not at all)
+    cfg.link.require_signed = False  # and takes the robot's frames however they come while its key changes
     ep = _open(ns, "key", cfg)
     try:
         ep.set_signing_key(old)
