@@ -2,7 +2,8 @@
 
 Prediction. The firmware reports its odometry pose (in its own frame, which starts at the start
 pose) about every 100 ms. The increment between two reports, expressed in the earlier report's
-body frame, is applied to the estimate (odometry is good over short stretches and drifts over long
+body frame, is applied to the estimate (the first report's increment is from the odometry origin, so
+the estimate becomes the start pose composed with the reported pose) (odometry is good over short stretches and drifts over long
 ones); its noise grows with the distance driven and the angle turned (``FilterParams``).
 
 Latency. A report describes the robot at the firmware time it was stamped (``time_boot_ms``), up to
@@ -99,18 +100,19 @@ class PoseFilter:
         self.stamp_s: float | None = None
         self.speed_m_s = 0.0
         self.yaw_rate_rad_s = 0.0
-        self._last_odo: Pose2D | None = None
+        self._last_odo = Pose2D()  # the odometry frame's origin is the start pose
         self.updates = 0
         self.rejected = 0
 
     # ---- prediction ------------------------------------------------------------------------------
     def odometry(self, odo_pose: Pose2D, stamp_s: float, speed_m_s: float, yaw_rate_rad_s: float) -> None:
-        """A new odometry report (pose in the odometry frame, its stamp, speed, yaw rate). Reports
-        with a stamp not newer than the last one are ignored (a repeated or late frame)."""
+        """A new odometry report (pose in the odometry frame, which starts at ``start``; its stamp,
+        speed, yaw rate). The first report moves the estimate from ``start`` by the whole reported pose
+        (start (+) odo_pose), each later one by the increment since the previous report. Reports with a
+        stamp not newer than the last one are ignored (a repeated or late frame)."""
         if self.stamp_s is not None and stamp_s <= self.stamp_s:
             return
-        if self._last_odo is not None:
-            self._move(relative(self._last_odo, odo_pose))
+        self._move(relative(self._last_odo, odo_pose))
         self._last_odo = odo_pose
         self.stamp_s = stamp_s
         self.speed_m_s = speed_m_s

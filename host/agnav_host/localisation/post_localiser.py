@@ -33,7 +33,9 @@ class PostLocaliser:
         self.sighted = 0
 
     def odometry(self, x_m: float, y_m: float, yaw_rad: float, stamp_s: float, speed_m_s: float, yaw_rate_rad_s: float) -> None:
-        self.filter.odometry(self.start.compose(Pose2D(x_m, y_m, yaw_rad)), stamp_s, speed_m_s, yaw_rate_rad_s)
+        """One odometry report, pose in the firmware's frame (origin at ``start``). The first report,
+        wherever it is, places the estimate at ``start`` (+) that pose; see :meth:`PoseFilter.odometry`."""
+        self.filter.odometry(Pose2D(x_m, y_m, yaw_rad), stamp_s, speed_m_s, yaw_rate_rad_s)
 
     def scan(self, ranges_m: FloatArray, angles_rad: FloatArray, t_s: float, range_max_m: float = math.inf) -> int:
         """Correct with one scan taken at ``t_s``; returns the number of posts used."""

@@ -16,7 +16,7 @@ import numpy as np
 from ..types import DriveCommand, Observation, norm_angle_rad
 from ..planning.base import free_distances_m  # one implementation for stand-ins and planners
 
-__all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m"]
+__all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m", "turn_circle_speed_m_s"]
 
 
 class Controller(Protocol):
@@ -52,9 +52,13 @@ class GoalSeek:
     disc could drive straight (:func:`free_distances_m`), and picks the direction with the largest
     progress towards the goal, ``min(free, goal distance, lookahead) * cos(direction - goal bearing)``,
     less a hysteresis penalty for changing its mind; when no direction makes progress it heads for
-    the most open one.
-    A differential drive turns on the spot when the chosen direction is more than 60 deg off; an
-    Ackermann robot steers by pure pursuit towards a point on that direction.
+    the most open one. Within ``slow_radius_m`` of the goal, with the straight way to it clear, it heads
+    straight for the goal (the hysteresis would otherwise outweigh the little progress left and let the
+    robot drive past a goal with a tight tolerance).
+    A differential drive turns on the spot when the chosen direction is more than 60 deg off, and drives
+    no faster than lets its turning circle at ``max_yaw_rate_rad_s`` reach the goal
+    (:func:`turn_circle_speed_m_s`); an Ackermann robot steers by pure pursuit towards a point on that
+    direction.
     """
 
     def __init__(self, params: GoalSeekParams | None = None) -> None:
@@ -88,7 +92,13 @@ class GoalSeek:
         need = min(d_goal, p.lookahead_m)
         # progress towards the goal a straight move along each direction would make, m
         progress = np.minimum(free, need) * np.cos(dirs - g_rel) - p.hysteresis * np.abs(dirs - self._prev)
-        if progress.max() > 0.05:
+        i_goal = int(np.argmin(np.abs(dirs - g_rel)))
+        if d_goal <= p.slow_radius_m and abs(float(dirs[i_goal]) - g_rel) < 1e-9 and free[i_goal] >= d_goal:
+            # the goal is near and the way to it is clear: head straight for it. Near the goal the progress
+            # any direction can make is smaller than the hysteresis penalty, which would freeze the heading
+            # and let the robot drive past (and circle) a goal with a tight tolerance.
+            i = i_goal
+        elif progress.max() > 0.05:
             i = int(np.argmax(progress))
         else:  # boxed in: head for the most open direction
             i = int(np.argmax(free - p.hysteresis * np.abs(dirs - self._prev)))
@@ -100,7 +110,8 @@ class GoalSeek:
             yaw_rate = max(-p.max_yaw_rate_rad_s, min(p.max_yaw_rate_rad_s, p.yaw_gain * theta))
             if abs(theta) > math.radians(60.0) or ahead < 0.05:
                 return DriveCommand(0.0, yaw_rate)
-            v = speed_cap * math.cos(theta) ** 2
+            # no faster than the turning circle at the yaw-rate limit that still reaches the goal
+            v = min(speed_cap * math.cos(theta) ** 2, turn_circle_speed_m_s(p.max_yaw_rate_rad_s, d_goal, g_rel))
             return DriveCommand(v, yaw_rate)
         # Ackermann: pure pursuit to a point at distance ld along theta; no reverse
         ld = max(0.5, min(need, 1.5))
@@ -110,6 +121,17 @@ class GoalSeek:
             return DriveCommand(0.0, 0.0, steer)
         v = max(p.min_speed_m_s, speed_cap * (0.5 + 0.5 * math.cos(theta)))
         return DriveCommand(v, 0.0, steer)
+
+
+def turn_circle_speed_m_s(max_yaw_rate_rad_s: float, d_goal_m: float, bearing_rad: float) -> float:
+    """Fastest speed, m/s, whose turning circle at ``max_yaw_rate_rad_s`` still passes through a goal
+    ``d_goal_m`` away at ``bearing_rad`` off the heading. The circle tangent to the heading through the
+    goal has radius ``d / (2 |sin(bearing)|)``, so ``v <= max_yaw_rate * d / (2 |sin(bearing)|)``; faster,
+    the robot circles the goal. Infinite (no cap) when the goal is dead ahead or behind."""
+    s = abs(math.sin(bearing_rad))
+    if s < 1e-9:
+        return math.inf
+    return max_yaw_rate_rad_s * d_goal_m / (2.0 * s)
 
 
 STANDINS: dict[str, Callable[[GoalSeekParams], Controller]] = {

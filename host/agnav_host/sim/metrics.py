@@ -8,6 +8,12 @@ AgNav uses the integral form ``BE = integral kappa(s)^2 ds``: the path is first 
 length ``ds``, each interior point gets the circumcircle (Menger) curvature
 ``kappa = 4 * area(P1, P2, P3) / (|P1P2| |P2P3| |P1P3|)``, and ``BE = sum kappa_i^2 * ds``. A circle
 of radius R then gives length / R^2 and a straight line 0, whatever the sample rate.
+
+A reversal (a cusp: the robot backs off along, or nearly along, the way it came) has no finite
+curvature: the circle through the tip and its two neighbours has a radius of about ``ds / 2`` when the
+legs are a fraction of a degree apart, and of infinity when they are exactly collinear. Such vertices
+(consecutive resampled chords turning by more than :data:`CUSP_TURN_DEG`) are left out of the bending
+energy and counted apart, in ``reversals`` (:func:`count_reversals`).
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ __all__ = [
     "SUMMARY_KEYS",
     "path_length_m",
     "bending_energy",
+    "count_reversals",
+    "CUSP_TURN_DEG",
     "resample_path",
     "count_stops",
     "count_heading_oscillations",
@@ -44,10 +52,14 @@ SUMMARY_KEYS = (
     "min_clearance_m",
     "stops",
     "heading_oscillations",
+    "reversals",
     "final_position_error_m",
     "final_heading_error_deg",
     "arrival_time_error_s",
 )
+
+
+CUSP_TURN_DEG = 150.0  # consecutive chords turning by more than this: a reversal (cusp), deg
 
 
 def path_length_m(xy: FloatArray) -> float:
@@ -83,22 +95,76 @@ def menger_curvature(xy: FloatArray) -> FloatArray:
     return np.where(den > 1e-15, 2.0 * np.abs(cross) / np.where(den > 1e-15, den, 1.0), 0.0)
 
 
-def bending_energy(xy: FloatArray, ds_m: float = 0.05) -> float:
-    """Integral of squared curvature along a path (n, 2), 1/m. See the module docstring.
-
-    ``ds_m`` is the resampling step; it is raised to the median input spacing when that is coarser.
-    """
+def _bending_samples(xy: FloatArray, ds_m: float) -> tuple[FloatArray, float]:
+    """The path resampled for the bending energy and the step used: ``ds_m``, raised to the median
+    input spacing when that is coarser (never resample finer than the input: chords would concentrate
+    the curvature)."""
     xy = np.asarray(xy, dtype=float)
-    if len(xy) > 1:  # never resample finer than the input: chords would concentrate the curvature
+    if len(xy) > 1:
         seg = np.hypot(*np.diff(xy, axis=0).T)
         seg = seg[seg > 1e-12]
         if len(seg):
             ds_m = max(ds_m, float(np.median(seg)))
-    p = resample_path(xy, ds_m)
+    return resample_path(xy, ds_m), ds_m
+
+
+def _cusps(p: FloatArray) -> tuple[np.ndarray, int]:
+    """Reversals of a resampled path p (n, 2): a mask (n-2,) of the interior vertices that belong to a
+    cusp, and the number of cusps.
+
+    A vertex whose two chords turn by more than CUSP_TURN_DEG is a cusp. When the tip falls between
+    two samples the chord joining them cuts the tip and splits the turn over two vertices (each can be
+    well under the threshold, e.g. 90 + 90 deg); so two neighbouring vertices whose outer chords turn by
+    more than CUSP_TURN_DEG are one cusp too (whatever the sampling phase, a reversal is then found
+    from the angle between its two legs alone)."""
+    n = len(p)
+    mask = np.zeros(max(n - 2, 0), dtype=bool)
+    if n < 3:
+        return mask, 0
+    d = np.diff(p, axis=0)
+    length = np.hypot(d[:, 0], d[:, 1])
+    u = d / np.where(length > 1e-12, length, 1.0)[:, None]  # chord directions
+    cos_cusp = math.cos(math.radians(CUSP_TURN_DEG))
+    cusps = 0
+    j = 0
+    while j < n - 2:  # vertex j + 1, between chords j and j + 1
+        if float(u[j] @ u[j + 1]) < cos_cusp:
+            mask[j] = True
+            cusps += 1
+            j += 1
+            continue
+        if j + 2 < n - 1 and float(u[j] @ u[j + 2]) < cos_cusp:
+            mask[j] = mask[j + 1] = True
+            cusps += 1
+            j += 2
+            continue
+        j += 1
+    return mask, cusps
+
+
+def bending_energy(xy: FloatArray, ds_m: float = 0.05) -> float:
+    """Integral of squared curvature along a path (n, 2), 1/m. See the module docstring.
+
+    ``ds_m`` is the resampling step; it is raised to the median input spacing when that is coarser.
+    Reversals (cusps, see :func:`count_reversals`) contribute nothing: they are counted apart, in the
+    ``reversals`` metric, so a back-off along the same line and one a fraction of a degree off it score
+    the same. A path without reversals gets the plain integral.
+    """
+    p, ds_m = _bending_samples(xy, ds_m)
     if len(p) < 3:
         return 0.0
     k = menger_curvature(p)
+    cusp, _ = _cusps(p)
+    k = np.where(cusp, 0.0, k)
     return float(np.sum(k * k) * ds_m)
+
+
+def count_reversals(xy: FloatArray, ds_m: float = 0.05) -> int:
+    """Direction reversals (cusps) of a path (n, 2): on the path resampled as for :func:`bending_energy`,
+    consecutive chords turning by more than CUSP_TURN_DEG (150 deg), e.g. a back-off, a three-point turn's
+    two reversals."""
+    p, _ = _bending_samples(xy, ds_m)
+    return _cusps(p)[1]
 
 
 def count_stops(speed_m_s: FloatArray, moving_m_s: float = 0.05, stopped_m_s: float = 0.01) -> int:
@@ -137,6 +203,7 @@ class RunMetrics:
     min_clearance_m: float | None
     stops: int
     heading_oscillations: int
+    reversals: int  # direction reversals (cusps) of the driven path, left out of bending_energy
     final_position_error_m: float
     final_heading_error_deg: float | None
     arrival_time_error_s: float | None
@@ -172,6 +239,7 @@ class RunMetrics:
             min_clearance_m=float(clear.min()) if len(clear) else None,
             stops=count_stops(speed_m_s),
             heading_oscillations=count_heading_oscillations(yaw_rate_rad_s),
+            reversals=count_reversals(xy),
             final_position_error_m=fpe,
             final_heading_error_deg=fhe,
             arrival_time_error_s=ate,

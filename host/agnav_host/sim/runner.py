@@ -1,7 +1,8 @@
 """Run a scenario with a controller in closed loop and write its outputs.
 
 The simulator owns time: physics advances in fixed ``dt_s`` steps and the controller runs every
-``1 / control_hz`` seconds on a fresh laser scan. All noise comes from generators spawned from one
+``control_every(sc)`` steps, ``1 / control_hz`` seconds rounded to a whole number of steps (the period the
+planners are told, ``RobotSpec.control_dt_s``), on a fresh laser scan. All noise comes from generators spawned from one
 seed, so the same seed gives byte-identical outputs.
 """
 
@@ -27,7 +28,7 @@ from .metrics import RunMetrics
 from .robots import AckermannParams
 from .scenario import Scenario
 
-__all__ = ["RunResult", "run_scenario", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
+__all__ = ["RunResult", "run_scenario", "control_every", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
 
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
 HOLE_FALL_DEPTH_M = 0.1  # the robot's centre over ground this far below nominal counts as fallen in
@@ -55,12 +56,20 @@ def planner_names() -> list[str]:
     return sorted(STANDINS) + host_planners() + field_controller_names()
 
 
+def control_every(sc: Scenario) -> int:
+    """Physics steps between two controller calls: ``1 / control_hz`` seconds rounded to whole ``dt_s``
+    steps, at least one. The controller's real period is this times ``dt_s``."""
+    return max(1, int(round(1.0 / (sc.control_hz * sc.dt_s))))
+
+
 def robot_spec(sc: Scenario) -> "RobotSpec":
-    """The planners' view of the scenario's robot and sensors (agnav_host.planning.RobotSpec)."""
+    """The planners' view of the scenario's robot and sensors (agnav_host.planning.RobotSpec).
+    ``control_dt_s`` is the period at which :func:`run_scenario` really calls the planner
+    (:func:`control_every` physics steps), not ``1 / control_hz``."""
     from ..planning.base import RobotSpec
 
     p = sc.robot_params
-    dt = 1.0 / sc.control_hz
+    dt = control_every(sc) * sc.dt_s
     kw: dict[str, float | int | str] = {}
     if sc.sonar is not None:
         s = sc.sonar.spec
@@ -161,7 +170,7 @@ def run_scenario(
     world = sc.world
     dt = sc.dt_s
     n_steps = int(round(duration / dt))
-    ctrl_every = max(1, int(round(1.0 / (sc.control_hz * dt))))
+    ctrl_every = control_every(sc)
     prog_every = max(1, int(round(1.0 / dt)))
     gi = 0
     cmd = DriveCommand()

@@ -267,11 +267,14 @@ def _laser_spec(rd: _Reader, t: dict[str, Any], path: Path_, default_model: str)
     over: dict[str, Any] = {}
     for k in ("range_std_m", "dropout_prob", "mixed_pixel_prob", "max_range_m"):
         if k in t:
-            over[k] = rd.num(t, k, path, lo=0.0, hi=1.0 if k.endswith("prob") else None)
+            over[k] = rd.num(t, k, path, lo=0.0, lo_open=k == "max_range_m", hi=1.0 if k.endswith("prob") else None)
     if "no_return" in t:
         nr = rd.string(t, "no_return", path, choices=("nan", "inf", "zero"))
         over["no_return"] = {"nan": math.nan, "inf": math.inf, "zero": 0.0}[nr]
-    return LaserSpec(**{**{f.name: getattr(spec, f.name) for f in fields(spec)}, **over})
+    try:
+        return LaserSpec(**{**{f.name: getattr(spec, f.name) for f in fields(spec)}, **over})
+    except ValueError as e:
+        raise rd.error(path, str(e)) from None
 
 
 def _robot(rd: _Reader, data: dict[str, Any]) -> tuple[str, DiffDriveParams | AckermannParams, Pose2D, float]:
@@ -334,6 +337,8 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     duration = rd.num(sc, "duration_s", sp, 120.0, lo=0.0, lo_open=True)
     dt = rd.num(sc, "dt_s", sp, 0.02, lo=0.0, lo_open=True, hi=0.5)
     control_hz = rd.num(sc, "control_hz", sp, 15.0, lo=0.0, lo_open=True)
+    if control_hz * dt > 1.0 + 1e-9:  # the controller runs at most once per physics step
+        raise rd.error((*sp, "control_hz"), f"must be <= 1 / dt_s = {1.0 / dt:g}, got {control_hz:g}")
     wrng = np.random.default_rng(rd.integer(sc, "world_seed", sp, 0))
 
     kind, params, start, vmax = _robot(rd, data)
@@ -453,12 +458,15 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                          "max_range_m", "no_return", "fov_deg", "resolution_deg"})
         tspec = _laser_spec(rd, tt, tp, "lms200")
         # the beams: field of view and step (defaults from the model), e.g. a narrower fan across the track
-        tspec = replace(tspec, fov_rad=math.radians(rd.num(tt, "fov_deg", tp, math.degrees(tspec.fov_rad), lo=0.0, lo_open=True, hi=359.0)),
-                        resolution_rad=math.radians(rd.num(tt, "resolution_deg", tp, math.degrees(tspec.resolution_rad),
-                                                           lo=0.0, lo_open=True, hi=90.0)))
-        tilted = TiltedLaser(tspec, rd.num(tt, "height_m", tp, 0.5, lo=0.0, lo_open=True),
-                             math.radians(rd.num(tt, "tilt_deg", tp, 20.0, lo=0.0, lo_open=True, hi=89.0)),
-                             rd.pose(tt, "mount", tp) if "mount" in tt else Pose2D())
+        fov = math.radians(rd.num(tt, "fov_deg", tp, math.degrees(tspec.fov_rad), lo=0.0, lo_open=True, hi=359.0))
+        res = math.radians(rd.num(tt, "resolution_deg", tp, math.degrees(tspec.resolution_rad), lo=0.0, lo_open=True, hi=90.0))
+        height = rd.num(tt, "height_m", tp, 0.5, lo=0.0, lo_open=True)
+        tilt = math.radians(rd.num(tt, "tilt_deg", tp, 20.0, lo=0.0, lo_open=True, hi=89.0))
+        mount = rd.pose(tt, "mount", tp) if "mount" in tt else Pose2D()
+        try:
+            tilted = TiltedLaser(replace(tspec, fov_rad=fov, resolution_rad=res), height, tilt, mount)
+        except ValueError as e:
+            raise rd.error(tp, str(e)) from None
     sonar = None
     if "sonar" in data:
         so = rd.table(data, "sonar", ())
