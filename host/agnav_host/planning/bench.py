@@ -95,6 +95,7 @@ def run_case(job: tuple[str, str, int]) -> dict[str, Any]:
         "scenario": scenario, "planner": entry, "seed": seed, "end": r.end_reason, "success": m.success,
         "time_s": m.time_s, "path_length_m": m.path_length_m, "bending_energy": m.bending_energy,
         "min_clearance_m": m.min_clearance_m, "stops": m.stops, "heading_oscillations": m.heading_oscillations,
+        "reversals": m.reversals,
         "step_median_ms": float(np.median(st) * 1e3) if len(st) else math.nan,
         "step_p95_ms": float(np.percentile(st, 95) * 1e3) if len(st) else math.nan,
         "wall_s": wall, "traj": keep[:, [0, 1, 2, 4]], "kappa": kappa,
@@ -136,7 +137,7 @@ def progress_bar(done: int, total: int, r: dict[str, Any]) -> None:
 
 
 RUN_FIELDS = ("scenario", "planner", "seed", "end", "success", "time_s", "path_length_m", "bending_energy", "min_clearance_m",
-              "stops", "heading_oscillations", "step_median_ms", "step_p95_ms", "wall_s")
+              "stops", "heading_oscillations", "reversals", "step_median_ms", "step_p95_ms", "wall_s")
 SUMMARY_FIELDS = ("scenario", "planner", "runs", "success_rate", "time_s", "path_length_m", "bending_energy",
                   "min_clearance_m", "stops", "step_median_ms")
 
