@@ -21,12 +21,14 @@ OUT = ROOT / "docs" / "protocol.md"
 
 # name -> (direction, rate): what firmware/src/main.c sends and firmware/lib/link/link.c accepts
 TRAFFIC = [
-    ("AGNAV_BEHAVIOUR_STATUS", "robot -> host", "50 Hz (every control tick)"),
+    ("AGNAV_BEHAVIOUR_STATUS", "robot -> host", "evaluated every 50 Hz control tick; sent when the layer, reason or a failsafe flag changes, else every 200 ms (5 Hz)"),
     ("AGNAV_ODOMETRY", "robot -> host", "10 Hz"),
-    ("AGNAV_ENCODER_STATUS", "robot -> host", "10 Hz"),
+    ("AGNAV_ENCODER_STATUS", "robot -> host", "2 Hz"),
+    ("LOCAL_POSITION_NED", "robot -> host", "2 Hz (the odometry pose for ground stations; NED: y_east = -y_left)"),
     ("AGNAV_SONAR_RING", "robot -> host", "10 Hz (once a ring is complete)"),
+    ("SYS_STATUS", "robot -> host", "1 Hz (sensor health; errors_count2..4: refused signed frames)"),
     ("HEARTBEAT", "both", "robot 1 Hz (custom_mode = active layer); host >= 1 Hz, >= 2.5 / LINK_TIMEOUT_MS when it sends no setpoints; only a type MAV_TYPE_GCS heartbeat counts for the host (not another robot's)"),
-    ("NAMED_VALUE_INT", "robot -> host", "1 Hz, `T_<task>`: worst run time of one scheduler task, us (round robin)"),
+    ("NAMED_VALUE_INT", "robot -> host", "2 Hz, `T_<task>`: worst run time of one scheduler task, us (round robin)"),
     ("STATUSTEXT", "robot -> host", "on events (calibration defaulted, parameter refused, ...)"),
     ("AGNAV_DRIVE_SETPOINT", "host -> robot", ">= 5 Hz while driving (counts as a heartbeat; LINK_TIMEOUT_MS 500)"),
     ("COMMAND_LONG / COMMAND_ACK", "host -> robot / answer", "MAV_CMD_AGNAV_ESTOP, MAV_CMD_AGNAV_SET_BEHAVIOURS, MAV_CMD_COMPONENT_ARM_DISARM; others UNSUPPORTED"),
@@ -65,10 +67,11 @@ def render(xml_path: Path = XML) -> str:
     for name, d, rate in TRAFFIC:
         w(f"| {name} | {d} | {rate} |")
     w("")
-    w("Measured on the real firmware (native SIL build, 9 s idle with a 12-sonar ring): 2429 B/s received by "
-      "the host, of which AGNAV_BEHAVIOUR_STATUS 1200 B/s (24 B x 50 Hz), AGNAV_SONAR_RING 550 B/s, "
-      "AGNAV_ENCODER_STATUS 490 B/s, AGNAV_ODOMETRY 140 B/s (zero-trimmed at rest), heartbeat and task timing "
-      "49 B/s. A 57600-baud link carries 5760 B/s; the host warns above its 1500 B/s budget.")
+    w("Measured on the real firmware (native SIL build, `make demo`'s 20.4 s drive with a 12-sonar ring, "
+      "`agnav replay out/demo/link.tlog`): 1253 B/s received by the host in 678 frames: AGNAV_ODOMETRY and "
+      "AGNAV_SONAR_RING 10 Hz each, AGNAV_BEHAVIOUR_STATUS 5.1 Hz, LOCAL_POSITION_NED, NAMED_VALUE_INT and "
+      "AGNAV_ENCODER_STATUS 2 Hz each, HEARTBEAT and SYS_STATUS 1 Hz. The host sent 411 B/s (setpoints at "
+      "15 Hz, heartbeats at 2 Hz). A 57600-baud link carries 5760 B/s; the host warns above its 1500 B/s budget.")
     w("")
     msgs = root.find("messages")
     w("## Messages")

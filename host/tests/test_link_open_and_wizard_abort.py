@@ -92,6 +92,15 @@ def test_missing_serial_device_fails_fast_with_the_os_error(tmp_path):
     assert dt < 3.0  # a short grace for a board re-enumerating, not the 10 s open timeout
 
 
+def test_a_regular_file_or_directory_as_serial_device_fails_at_once(tmp_path):
+    f = tmp_path / "notatty"
+    f.write_bytes(b"")
+    for dev in (f, tmp_path):
+        msg, dt = open_error(f"serial:{dev}:57600", open_timeout_s=10.0)
+        assert msg.startswith(f"could not open serial:{dev}:57600:") and "not a serial port" in msg, msg
+        assert dt < 1.0
+
+
 def test_refused_loopback_connection_fails_fast():
     port = free_port()
     msg, dt = open_error(f"tcp:127.0.0.1:{port}", open_timeout_s=10.0)

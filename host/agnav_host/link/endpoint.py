@@ -38,6 +38,7 @@ import os
 import queue
 import select
 import socket
+import stat
 import threading
 import time
 from collections import deque
@@ -407,6 +408,14 @@ class Endpoint:
 
         sp = self.spec
         if sp.kind == "serial":
+            try:
+                mode = os.stat(sp.address).st_mode
+            except OSError:
+                mode = None  # missing: pymavlink's open reports it (and a USB board may appear in a moment)
+            if mode is not None and not stat.S_ISCHR(mode):
+                # pymavlink would take a regular file for a log to read and fail on the first write
+                what = "a directory" if stat.S_ISDIR(mode) else "a regular file" if stat.S_ISREG(mode) else "not a device"
+                raise OSError(errno.ENOTTY, f"{sp.address} is not a serial device ({what})")
             conn = mavutil.mavlink_connection(sp.address, baud=sp.baud, autoreconnect=False)
         elif sp.kind == "tcp":
             conn = mavutil.mavlink_connection(sp.address, retries=1, autoreconnect=False)
