@@ -410,3 +410,10 @@ def test_finite_config_values_still_load(tmp_path):
     cfg = load_config(p)
     assert cfg.run.control_hz == 5.0 and cfg.ardupilot.mode == "rc" and math.isfinite(cfg.link.heartbeat_hz)
     assert os.path.samefile(cfg.source, p)
+
+
+def test_run_refuses_a_simulator_only_field_controller_by_name(capsys):
+    for name in ("proximity", "row-follower", "goal_seek+ground-guard"):
+        assert cli.main(["run", "--device", nowhere(), "--planner", name, "--goal", "1,0", "--no-tlog"]) == 2
+        err = capsys.readouterr().err
+        assert f"{name} is a field controller" in err and "`agnav sim` only" in err, err

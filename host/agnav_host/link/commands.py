@@ -322,7 +322,12 @@ def _cmd_run(ns: argparse.Namespace) -> int:
     fw_goal: _FirmwareGoal | None = None
     if planner_name:
         from ..planning.registry import canonical_name
+        from ..sim.field_controllers import is_field_controller
 
+        if is_field_controller(planner_name):
+            _err("run", f"{planner_name} is a field controller built from a simulator scenario (its row, laser and "
+                        "tilted laser); it runs with `agnav sim` only, not on a robot through `agnav run`")
+            return 2
         canonical_name(planner_name)  # UnknownPlanner (ValueError) before touching the robot
         if planner_needs_laser(planner_name):
             from ..planning.registry import planner_names
