@@ -395,7 +395,9 @@ class Endpoint:
 
     def _event(self, text: str, level: int = logging.INFO) -> None:
         self.events.append((time.monotonic(), text))
-        log.log(level, "%s: %s", self.spec, text)
+        # with a callback the event is shown there: logged at DEBUG only, or Python's last-resort
+        # handler prints every warning a second time on a console without logging set up
+        log.log(level if self.on_event is None else logging.DEBUG, "%s: %s", self.spec, text)
         if self.on_event is not None:
             try:
                 self.on_event(text)
