@@ -68,3 +68,21 @@ def test_tlog_to_rrd_and_png(tmp_path):
     assert out.stat().st_size > 1000
     png = plot_run(s, tmp_path / "s.png")
     assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_long_runs_recording_grows_with_its_length_not_its_square(tmp_path):
+    pytest.importorskip("rerun")
+    from agnav_host.viz import Recorder
+
+    def size(n: int) -> int:
+        path = tmp_path / f"run{n}.rrd"
+        rec = Recorder.to_file(path)
+        for i in range(n):
+            t = i * 0.05
+            rec.set_time(t)
+            rec.log_pose(PoseState(t, 0.01 * i, 0.0, 0.0, 0.2, 0.0, t))
+        rec.close()
+        return path.stat().st_size
+
+    small, large = size(400), size(1600)
+    assert large / small < 6.0  # 4x the poses: about 4x the bytes (the whole path every pose gave ~12x)

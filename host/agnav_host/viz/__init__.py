@@ -7,7 +7,7 @@
     rec.close()
 
 Open a recording with ``rerun out/run.rrd`` (the viewer ships in the rerun-sdk wheel). Entity
-paths: ``world/robot`` (pose arrow), ``world/path`` (driven path), ``world/sonar`` (cones),
+paths: ``world/robot`` (pose arrow), ``world/path/<k>`` (driven path, in pieces), ``world/sonar`` (cones),
 ``world/laser`` (points), ``world/plan`` (planner path), ``world/goal``, ``behaviour/layer`` and
 ``behaviour/reason`` (scalars over time), ``behaviour/flags``, ``log`` (text).
 

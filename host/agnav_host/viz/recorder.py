@@ -14,6 +14,7 @@ __all__ = ["Recorder", "VizUnavailable", "require_rerun", "record_tlog", "RERUN_
 
 RERUN_PIN = "rerun-sdk==0.41.0"
 SONAR_HALF_CONE_RAD = math.radians(15.0)
+PATH_PIECE = 64  # points per logged piece of the driven path
 LAYER_COLOURS = {0: (128, 128, 128), 1: (220, 30, 30), 2: (240, 140, 0), 3: (160, 60, 200), 4: (40, 160, 220),
                  5: (40, 180, 80), 6: (30, 90, 220)}
 
@@ -50,7 +51,9 @@ class Recorder:
         self.rr = rr
         self.rec = rec
         self.path = path
-        self._path: list[list[float]] = []
+        self._path: list[list[float]] = []  # the driven path's current piece (PATH_PIECE points at most)
+        self._piece = 0
+        self._poses = 0
         self._last_path_log = -1e9
 
     @classmethod
@@ -78,9 +81,17 @@ class Recorder:
         x, y, yaw = pose.x_m, pose.y_m, pose.yaw_rad
         self.rec.log("world/robot", rr.Arrows2D(origins=[[x, y]], vectors=[[0.3 * math.cos(yaw), 0.3 * math.sin(yaw)]],
                                                 colors=[(20, 20, 20)]))
+        # The path goes out in pieces of PATH_PIECE points (world/path/<k>), the open piece again every
+        # 4th pose and when full: a recording grows with the run's length, not with its square as when
+        # the whole path was logged on every pose (65 MB for 10 minutes).
         self._path.append([x, y])
-        if len(self._path) >= 2:
-            self.rec.log("world/path", rr.LineStrips2D([self._path], colors=[(90, 90, 200)]))
+        self._poses += 1
+        full = len(self._path) >= PATH_PIECE
+        if len(self._path) >= 2 and (full or self._poses % 4 == 0):
+            self.rec.log(f"world/path/{self._piece}", rr.LineStrips2D([self._path], colors=[(90, 90, 200)]))
+        if full:
+            self._piece += 1
+            self._path = [self._path[-1]]
         self.rec.log("state/speed_m_s", rr.Scalars([pose.speed_m_s]))
 
     def log_goal(self, x_m: float, y_m: float) -> None:
