@@ -127,3 +127,16 @@ def test_steering_sweep_with_a_fractional_trim_fits(offset):
     # every swept integer PWM within a count's worth of angle (0.65 deg) of the car's own value
     err = [abs(res.table.value(int(q)) - true.value_from_pwm(float(q)) * cdeg) for q in range(90, 176)]
     assert max(err) <= 70.0
+
+
+def test_small_steering_corrections_go_out_as_the_cars_smallest_step():
+    # the firmware steers straight below its table's first point (0.65 deg left, 1.03 deg right by
+    # default): a smaller correction is sent as that step, not lost
+    goal = Goal(20.0, 0.0, 0.0, 40.0, 0.05)
+    for y_m, want in ((0.005, -1.03), (-0.002, 0.65)):  # a few mm left (right) of the planned straight line
+        pl = TimedPlanner()
+        pl.reset()
+        pl.step(Observation(0.0, Pose2D(), 0.0, 0.0, goal, None, None, {}))  # plans along +x
+        cmd = pl.step(Observation(0.05, Pose2D(0.02, y_m, 0.0), 0.5, 0.0, goal, None, None, {}))
+        assert cmd.speed_m_s > 0
+        assert math.degrees(cmd.steer_rad) == pytest.approx(want, abs=1e-9)

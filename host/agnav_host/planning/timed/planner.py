@@ -83,6 +83,14 @@ class TimedParams:
     # to neutral (stop): that point is 43.5 cm/s rounded to a whole PWM count, 446 mm/s in the default
     # table, so commands never go below 0.45 m/s (slower plans are driven through the speed ratio)
     command_min_m_s: float = 0.45
+    # smallest nonzero steering commands, left and right. The firmware maps an angle below its steering
+    # table's first point on that side to neutral (straight); the default table's first whole PWM counts
+    # steer 0.65 deg left (PWM 134) and 1.03 deg right (PWM 132). A smaller wanted angle (over 0.006 deg)
+    # is sent as the step, so that the tracker's small corrections reach the wheels: alternating with
+    # straight they average out (sent as they are, they would all be straight, and the 100 m run of the
+    # timed benchmark ended 3 deg off its heading instead of 0.13); 0 sends the angle as it is
+    steer_step_left_deg: float = 0.65
+    steer_step_right_deg: float = 1.03
     # moving obstacles from perception's tracker on the scans when obs.extras has no "tracks"
     track_from_scan: bool = True
     track_coast_s: float = 1.0  # a track survives this long unseen (occlusions), predicted on its velocity
@@ -93,6 +101,9 @@ class TimedParams:
             raise ValueError("TimedParams: need 0 < plan_steer_deg <= max_steer_deg < 90")
         if self.max_candidates < 1:
             raise ValueError(f"TimedParams.max_candidates must be >= 1, got {self.max_candidates}")
+        for k in ("steer_step_left_deg", "steer_step_right_deg"):
+            if not 0 <= getattr(self, k) < self.max_steer_deg:
+                raise ValueError(f"TimedParams.{k} must be in [0, max_steer_deg), got {getattr(self, k)}")
         for k in ("accel_m_s2", "detect_range_m", "horizon_s", "replan_budget_s", "lookahead_min_m", "command_min_m_s"):
             if not getattr(self, k) > 0:
                 raise ValueError(f"TimedParams.{k} must be > 0, got {getattr(self, k)}")
@@ -298,6 +309,9 @@ class TimedPlanner:
             blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
             if blk is not None:
                 v = 0.0
+        step = math.radians(p.steer_step_left_deg if steer > 0.0 else p.steer_step_right_deg)
+        if 1e-4 < abs(steer) < step:
+            steer = math.copysign(step, steer)
         self._last_steer = steer
         self._last_v_cmd = v
         return DriveCommand(v, 0.0, steer)
