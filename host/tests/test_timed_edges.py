@@ -140,3 +140,19 @@ def test_small_steering_corrections_go_out_as_the_cars_smallest_step():
         cmd = pl.step(Observation(0.05, Pose2D(0.02, y_m, 0.0), 0.5, 0.0, goal, None, None, {}))
         assert cmd.speed_m_s > 0
         assert math.degrees(cmd.steer_rad) == pytest.approx(want, abs=1e-9)
+
+
+def test_static_clearance_is_squeezed_after_searches_that_found_nothing():
+    from agnav_host.planning.timed.planner import SQUEEZE_STEPS
+
+    pl = TimedPlanner()
+    pl.reset()
+    full = pl.params.static_clear_m
+    seen = []
+    for k in range(SQUEEZE_STEPS + 2):
+        pl._squeeze = min(k, SQUEEZE_STEPS)
+        seen.append(pl._static_clear_m("static"))
+    assert seen[0] == full and seen[1] == full / 2 and seen[-1] == 0.0
+    assert all(a >= b for a, b in zip(seen, seen[1:]))
+    pl._squeeze = SQUEEZE_STEPS
+    assert pl._static_clear_m("moving") == full  # only static searches are squeezed

@@ -52,6 +52,8 @@ from ._resolve import resolve
 from ._tracking import TrackingParams, TrackState, track
 
 __all__ = ["TimedParams", "TimedPlanner"]
+#: static searches with nothing clear before the clearance is down to 0 (halved at each)
+SQUEEZE_STEPS = 3
 
 
 @dataclass(frozen=True)
@@ -85,8 +87,8 @@ class TimedParams:
     command_min_m_s: float = 0.45
     # smallest nonzero steering commands, left and right. The firmware maps an angle below its steering
     # table's first point on that side to neutral (straight); the default table's first whole PWM counts
-    # steer 0.65 deg left (PWM 134) and 1.03 deg right (PWM 132). A smaller wanted angle (over 0.006 deg)
-    # is sent as the step, so that the tracker's small corrections reach the wheels: alternating with
+    # steer 0.65 deg left (PWM 134) and 1.03 deg right (PWM 132). Any smaller nonzero wanted angle is
+    # sent as the step, so that the tracker's small corrections reach the wheels: alternating with
     # straight they average out (sent as they are, they would all be straight, and the 100 m run of the
     # timed benchmark ended 3 deg off its heading instead of 0.13); 0 sends the angle as it is
     steer_step_left_deg: float = 0.65
@@ -137,6 +139,7 @@ class TimedPlanner:
         self._last_steer = 0.0
         self._last_replan_t = -math.inf
         self._budget_scale = 1.0
+        self._squeeze = 0  # searches for a static deviation that ended with no clear candidate, in a row
         self._search: tuple[str, int, Any] | None = None  # (trigger, next candidate, best late candidate) of a search in progress
         self.replan_work: list[tuple[int, int]] = []  # per replanning call: (candidates built and checked, candidates screened out)
         self._last_v_cmd = 0.0
@@ -309,12 +312,21 @@ class TimedPlanner:
             blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
             if blk is not None:
                 v = 0.0
-        step = math.radians(p.steer_step_left_deg if steer > 0.0 else p.steer_step_right_deg)
-        if 1e-4 < abs(steer) < step:
-            steer = math.copysign(step, steer)
+        # the next plan starts from the tracker's wanted angle; the one sent differs by less than a step
         self._last_steer = steer
         self._last_v_cmd = v
+        step = math.radians(p.steer_step_left_deg if steer > 0.0 else p.steer_step_right_deg)
+        if 0.0 < abs(steer) < step:
+            steer = math.copysign(step, steer)
         return DriveCommand(v, 0.0, steer)
+
+    def _static_clear_m(self, why: str) -> float:
+        """Clearance a static deviation must keep: ``static_clear_m``, halved after each search in a row
+        that found nothing clear, down to 0 (a car without reverse that has come close to a box would
+        otherwise stay stopped there for ever, every way out a few centimetres short of the margin)."""
+        if why != "static" or self._squeeze == 0:
+            return self.params.static_clear_m
+        return 0.0 if self._squeeze >= SQUEEZE_STEPS else self.params.static_clear_m * 0.5 ** self._squeeze
 
     def _maybe_replan(self, obs: Observation, target: Goal, pts: FloatArray, movers: list[SpaceTimeObstacle]) -> None:
         assert self.plan is not None
@@ -357,12 +369,15 @@ class TimedPlanner:
                 action = "catch-up"
             else:
                 res = resolve(start, goal, t, arrival, self.limits, vias, movers, pts, horizon_s=p.horizon_s,
-                              margin_m=p.moving_margin_m, static_clear_m=p.static_clear_m, static_range_m=p.detect_range_m + 2.0,
+                              margin_m=p.moving_margin_m, static_clear_m=self._static_clear_m(why),
+                              static_range_m=p.detect_range_m + 2.0,
                               deadline=t0 + budget, extra_vias_xy=extra, try_yield=why == "moving",
                               try_base=why != "static", max_candidates=p.max_candidates,
                               start_index=0 if search is None else search[1], late=None if search is None else search[2])
                 new, action = res.plan, f"{why}: {res.action}"
                 work = (res.tried, res.screened)
+                if why == "static" and res.next_index is None:
+                    self._squeeze = 0 if new is not None else min(self._squeeze + 1, SQUEEZE_STEPS)
                 if res.next_index is not None:  # not finished: go on from there at the next step
                     self._search = (why, res.next_index, res.late)
                     searching = True
