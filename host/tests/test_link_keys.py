@@ -4,8 +4,6 @@ one signed with the key it holds)."""
 
 from __future__ import annotations
 
-import threading
-
 import pytest
 
 from agnav_host.link.keys import CLEAR_KEY, mavlink_timestamp, new_key, setup_signing_message
@@ -34,25 +32,11 @@ def test_setup_signing_message_round_trips_and_checks_the_key_length():
 @pytest.fixture()
 def sil_server():
     """The SIL firmware (power-on at t = 0) served on a loopback TCP port at 4x real time."""
-    from agnav_host.sil import build_library
-    from agnav_host.sil.server import ServeOptions, serve
     from agnav_host.sim import load_scenario
 
-    build_library()
-    box: dict[str, object] = {}
-    up = threading.Event()
+    from _sil_server import serve_sil
 
-    def ready(addr, pty):
-        box["addr"] = addr
-        up.set()
-
-    opt = ServeOptions(tcp=("127.0.0.1", 0), speedup=4.0, duration_s=80.0)  # 20 s of wall time
-    th = threading.Thread(target=lambda: serve(load_scenario("corridor_obstacles"), opt, log=lambda m: None,
-                                               ready=ready), daemon=True)
-    th.start()
-    assert up.wait(30)
-    host, port = box["addr"]
-    yield f"tcp:{host}:{port}"
+    yield serve_sil(load_scenario("corridor_obstacles"), speedup=4.0, duration_s=80.0)  # 20 s of wall time
 
 
 def test_key_push_sets_the_key_and_a_later_unsigned_push_is_refused(sil_server, tmp_path, capsys):

@@ -4,7 +4,6 @@ TCP: a GOAL_REACHED left over from the previous goal must not end the next run."
 from __future__ import annotations
 
 import re
-import threading
 
 import pytest
 
@@ -27,25 +26,11 @@ y_m = 0.0
 
 @pytest.fixture()
 def open_field_sil():
-    from agnav_host.sil import build_library
-    from agnav_host.sil.server import ServeOptions, serve
     from agnav_host.sim import parse_scenario
 
-    build_library()
-    box: dict[str, object] = {}
-    up = threading.Event()
+    from _sil_server import serve_sil
 
-    def ready(addr, pty):
-        box["addr"] = addr
-        up.set()
-
-    opt = ServeOptions(tcp=("127.0.0.1", 0), speedup=1.0, duration_s=40.0)  # real time, like a robot
-    th = threading.Thread(target=lambda: serve(parse_scenario(OPEN_FIELD, "<open_field>"), opt, log=lambda m: None, ready=ready),
-                          daemon=True)
-    th.start()
-    assert up.wait(30)
-    host, port = box["addr"]
-    yield f"tcp:{host}:{port}"
+    yield serve_sil(parse_scenario(OPEN_FIELD, "<open_field>"), speedup=1.0, duration_s=40.0)  # real time, like a robot
 
 
 def _reached_at(out: str) -> float:
