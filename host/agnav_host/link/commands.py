@@ -493,8 +493,12 @@ def _cmd_run(ns: argparse.Namespace) -> int:
 
 def _stats_line(ep: Any) -> str:
     s = ep.stats
-    return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, peak "
-            f"{s.peak_rx_rate_bytes_s:.0f} B/s (budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
+    if ep.meter.full(time.monotonic()) or s.peak_rx_rate_bytes_s > 0:
+        rate = f"peak {s.peak_rx_rate_bytes_s:.0f} B/s"
+    else:  # shorter than one budget window: no peak over a whole window yet
+        rate = f"{ep.meter.rate(time.monotonic()):.0f} B/s over the run (shorter than the {ep.meter.window_s:g} s budget window)"
+    return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, {rate} "
+            f"(budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
             f"link losses {s.link_losses}, parse errors {s.rx_parse_errors}, lost {s.rx_seq_lost}")
 
 
