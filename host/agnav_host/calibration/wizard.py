@@ -165,8 +165,8 @@ class Wizard:
     def _brief(self, what: str) -> None:
         c = self.cfg
         self.io.say(f"Calibrating {what}. The car will drive by itself in raw PWM mode: each step lasts at "
-                    f"most {c.max_step_s:.0f} s and {c.max_distance_m:.1f} m; the firmware's failsafe and obstacle "
-                    f"layers stay active. Use an open, flat area with >= {c.max_distance_m:.0f} m free all around. "
+                    f"most {c.max_step_s:g} s and {c.max_distance_m:g} m; the firmware's failsafe and obstacle "
+                    f"layers stay active. Use an open, flat area with >= {c.max_distance_m:g} m free all around. "
                     "Ctrl-C stops the car with the firmware e-stop.")
         if not self._confirm("Area clear, wheels on the ground, e-stop at hand: start?"):
             raise Aborted("operator declined")

@@ -219,7 +219,9 @@ RULES: dict[str, dict[str, Check]] = {
 }
 
 #: (section, low key, high key): low must be < high.
-ORDERED_PAIRS = (("calibration", "steer_pwm_min", "steer_pwm_max"), ("calibration", "speed_pwm_min", "speed_pwm_max"))
+ORDERED_PAIRS = (("calibration", "steer_pwm_min", "steer_pwm_max"), ("calibration", "speed_pwm_min", "speed_pwm_max"),
+                 # a sweep step settles first, then measures: with no time left after settling it measures nothing
+                 ("calibration", "settle_s", "max_step_s"))
 
 
 def validate_config(cfg: HostConfig) -> None:

@@ -220,6 +220,9 @@ class RateMeter:
         return self._t0 is not None and t - self._t0 >= self.window_s
 
 
+_CLOSED = object()  # put into every subscription's queue when the endpoint closes
+
+
 class Subscription:
     """Queue of received messages matching types and an optional predicate."""
 
@@ -235,19 +238,27 @@ class Subscription:
         return self.predicate is None or bool(self.predicate(msg))
 
     def get(self, timeout: float) -> Any:
-        """Next matching message or None after ``timeout`` seconds."""
+        """Next matching message, or None after ``timeout`` seconds or at once when the endpoint is closed."""
         try:
-            return self.q.get(timeout=max(timeout, 0.0))
+            m = self.q.get(timeout=max(timeout, 0.0))
         except queue.Empty:
             return None
+        if m is _CLOSED:
+            self.q.put(m)  # every later wait ends at once too
+            return None
+        return m
 
     def drain(self) -> list[Any]:
         out = []
         while True:
             try:
-                out.append(self.q.get_nowait())
+                m = self.q.get_nowait()
             except queue.Empty:
                 return out
+            if m is _CLOSED:
+                self.q.put(m)
+                return out
+            out.append(m)
 
     def close(self) -> None:
         self._ep._unsubscribe(self)
@@ -381,6 +392,9 @@ class Endpoint:
 
     def close(self) -> None:
         self._stop.set()
+        with self._subs_lock:  # wake whoever waits for an answer: none will come now
+            for sub in self._subs:
+                sub.q.put(_CLOSED)
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
         self._close_conn()
@@ -557,7 +571,10 @@ class Endpoint:
         src = (m.get_srcSystem(), m.get_srcComponent())
         last = self._last_seq.get(src)
         if last is not None:
-            self.stats.rx_seq_lost += (m.get_seq() - last - 1) % 256
+            gap = (m.get_seq() - last - 1) % 256
+            # a gap of more than half the sequence space is a step back (a duplicate, or the robot
+            # rebooted and started again at 0), not 128-255 frames lost
+            self.stats.rx_seq_lost += gap if gap < 128 else 0
         self._last_seq[src] = m.get_seq()
         if mtype == "HEARTBEAT" and self._target[0] == 0 and m.type != self.d.MAV_TYPE_GCS:
             self._target = (src[0], self._fixed_target[1] or src[1])
@@ -583,8 +600,6 @@ class Endpoint:
             self.mav.seq = (self.mav.seq + 1) % 256
             self.mav.total_packets_sent += 1
             self.mav.total_bytes_sent += len(buf)
-            if self.tlog is not None:
-                self.tlog.write(buf)
             conn = self._conn
             if conn is None or self._broken:
                 self.stats.tx_dropped += 1
@@ -600,6 +615,8 @@ class Endpoint:
                 self._broken = True
                 self.stats.tx_dropped += 1
                 return False
+            if self.tlog is not None:  # what went out on the wire: a dropped frame is not logged as sent
+                self.tlog.write(buf)
             self.stats.tx_msgs += 1
             self.stats.tx_bytes += len(buf)
             return True
@@ -630,10 +647,14 @@ class Endpoint:
         """Send ``make()`` and wait for a matching answer, resending up to ``retries`` times."""
         with self.subscribe(types, predicate) as s:
             for _ in range(max(1, retries)):
+                if self._stop.is_set():
+                    raise LinkTimeout(f"{what}: the link to {self.spec} was closed")
                 self.send(make())
                 m = s.get(timeout)
                 if m is not None:
                     return m
+        if self._stop.is_set():
+            raise LinkTimeout(f"{what}: the link to {self.spec} was closed")
         raise LinkTimeout(f"{what}: no answer from {self.spec} after {retries} x {timeout:.1f} s")
 
     def wait_heartbeat(self, timeout: float = 5.0) -> Any:

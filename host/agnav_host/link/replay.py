@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .state import LAYER_NAMES, REASON_NAMES
-from .tlog import read_tlog
+from .tlog import LogClock, host_systems, read_tlog
 
 __all__ = ["TlogSummary", "TlogError", "summarize_tlog"]
 
@@ -22,6 +22,7 @@ class TlogError(ValueError):
 class TlogSummary:
     path: str
     duration_s: float = 0.0
+    breaks: int = 0  # jumps in the log's stamps left out of the times (clock set, runs appended)
     rx_msgs: Counter[str] = field(default_factory=Counter)
     tx_msgs: Counter[str] = field(default_factory=Counter)
     rx_bytes: int = 0
@@ -43,6 +44,9 @@ class TlogSummary:
                f"{self.rx_bytes} B ({self.rx_rate_bytes_s:.0f} B/s, budget {budget_bytes_s:.0f} B/s"
                f"{', OVER' if self.rx_rate_bytes_s > budget_bytes_s else ''}), sent {sum(self.tx_msgs.values())} "
                f"frames / {self.tx_bytes} B"]
+        if self.breaks:
+            out.append(f"({self.breaks} break(s) in the time stamps - the clock set, or runs appended to one file - "
+                       "left out of the times)")
         out.append("received:")
         for k, n in self.rx_msgs.most_common():
             out.append(f"  {k:28s} {n:7d}  {n / self.duration_s if self.duration_s else 0:6.1f} Hz")
@@ -79,21 +83,22 @@ def _check_readable(path: str | Path) -> None:
         raise TlogError(f"{p}: cannot read: {e.strerror or e}") from None
 
 
-def summarize_tlog(path: str | Path, host_sysid: int = 255) -> TlogSummary:
-    """Summary of one .tlog; :class:`TlogError` when ``path`` is not a readable file."""
+def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSummary:
+    """Summary of one .tlog; :class:`TlogError` when ``path`` is not a readable file. The host's frames
+    (``host_sysid``; by default the systems that sent ground-station heartbeats) count as sent. Times run
+    from the first frame, with any break in the stamps left out (:class:`~.tlog.LogClock`)."""
     _check_readable(path)
+    hosts = {host_sysid} if host_sysid is not None else host_systems(path)
     s = TlogSummary(str(path))
-    t0 = t_last = None
+    clock = LogClock()
     last_layer: tuple[int, int] | None = None
     last_layer_t = 0.0
     prev_xy: tuple[float, float] | None = None
     for t, m in read_tlog(path):
-        t0 = t if t0 is None else t0
-        t_last = t
-        rel = t - t0
+        rel = clock.tick(t)
         typ = m.get_type()
         n = len(m.get_msgbuf())
-        if m.get_srcSystem() == host_sysid:
+        if m.get_srcSystem() in hosts:
             s.tx_msgs[typ] += 1
             s.tx_bytes += n
             continue
@@ -120,6 +125,6 @@ def summarize_tlog(path: str | Path, host_sysid: int = 255) -> TlogSummary:
         elif typ == "STATUSTEXT":
             txt = m.text if isinstance(m.text, str) else m.text.decode("ascii", "replace")
             s.statustexts.append((rel, txt.split("\x00", 1)[0]))
-    if t0 is not None and t_last is not None:
-        s.duration_s = t_last - t0
+    s.duration_s = clock.rel_s
+    s.breaks = clock.breaks
     return s

@@ -146,18 +146,33 @@ class AgnavRobot:
 
     # ---- parameters ----------------------------------------------------------------------------
     def param_get(self, name: str) -> float:
-        m = self.ep.request(lambda: self.mav.param_request_read_encode(*self._tgt(), name.encode(), -1),
+        pid = _param_id(name)
+        m = self.ep.request(lambda: self.mav.param_request_read_encode(*self._tgt(), pid, -1),
                             "PARAM_VALUE", lambda m: _pid(m) == name, self.timeout_s, self.retries, f"param get {name}")
         return float(m.param_value)
 
     def param_set(self, name: str, value: float) -> float:
-        """Set and confirm; raises CommandFailed if the robot keeps another value (out of range)."""
-        m = self.ep.request(lambda: self.mav.param_set_encode(*self._tgt(), name.encode(), float(value),
-                                                              MAV_PARAM_TYPE_INT32),
-                            "PARAM_VALUE", lambda m: _pid(m) == name, self.timeout_s, self.retries, f"param set {name}")
-        if abs(float(m.param_value) - float(value)) > 0.5:
-            raise CommandFailed(f"param {name}: robot kept {m.param_value:g} (asked {value:g}; out of range?)")
-        return float(m.param_value)
+        """Set and confirm; raises CommandFailed if the robot keeps another value (out of range).
+
+        An answer with another value may be a late answer to an earlier request for the same name (a
+        slow radio), so it confirms nothing until the tries are used up: only then is it taken as the
+        value the robot kept."""
+        pid = _param_id(name)
+        other: Any = None
+        with self.ep.subscribe("PARAM_VALUE", lambda m: _pid(m) == name) as sub:
+            for _ in range(max(1, self.retries)):
+                self.ep.send(self.mav.param_set_encode(*self._tgt(), pid, float(value), MAV_PARAM_TYPE_INT32))
+                end = time.monotonic() + self.timeout_s
+                while (left := end - time.monotonic()) > 0:
+                    m = sub.get(left)
+                    if m is None:
+                        break
+                    if abs(float(m.param_value) - float(value)) <= 0.5:
+                        return float(m.param_value)
+                    other = m
+        if other is None:
+            raise LinkTimeout(f"param set {name}: no answer from {self.ep.spec} after {self.retries} x {self.timeout_s:.1f} s")
+        raise CommandFailed(f"param {name}: robot kept {other.param_value:g} (asked {value:g}; out of range?)")
 
     def param_list(self, timeout_s: float = 10.0, quiet_s: float = 0.5) -> dict[str, float]:
         """PARAM_REQUEST_LIST, then PARAM_REQUEST_READ by index for any the link lost.
@@ -237,6 +252,18 @@ class AgnavRobot:
         if save:
             self.calib_save(table.table_id)
         return back
+
+
+def _param_id(name: str) -> bytes:
+    """A parameter name as MAVLink carries it: ASCII, 1 to 16 characters. A longer name would be cut to
+    16 on the wire and read or set another parameter (AVOID_BACKOFF_MS_X is AVOID_BACKOFF_MS there)."""
+    try:
+        raw = name.encode("ascii")
+    except UnicodeEncodeError:
+        raise ValueError(f"parameter name {name!r} is not ASCII") from None
+    if not 1 <= len(raw) <= 16:
+        raise ValueError(f"parameter name {name!r} has {len(raw)} characters; MAVLink carries 1 to 16")
+    return raw
 
 
 def _pid(m: Any) -> str:

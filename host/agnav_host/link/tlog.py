@@ -103,3 +103,39 @@ def read_tlog(path: str | Path) -> Iterator[tuple[float, Any]]:
             yield float(getattr(m, "_timestamp", 0.0)), m
     finally:
         log.close()
+
+
+#: a gap between two frames longer than this (s) is a break in the log (runs appended to one file, a
+#: clock set while logging), not time the link ran
+TLOG_BREAK_S = 10.0
+
+MAV_TYPE_GCS = 6
+
+
+def host_systems(path: str | Path) -> set[int]:
+    """MAVLink system ids of the ground stations (GCS heartbeats) in a tlog; {255} when none is found
+    (the host's frames are what the log "sent", every other system's what it received)."""
+    ids = {m.get_srcSystem() for _, m in read_tlog(path) if m.get_type() == "HEARTBEAT" and m.type == MAV_TYPE_GCS}
+    return ids or {255}
+
+
+class LogClock:
+    """Time since the start of a tlog's run from its wall-clock stamps, in which a stamp going back (the
+    clock was set) or jumping ahead by more than ``TLOG_BREAK_S`` (another run appended) adds nothing;
+    ``breaks`` counts them."""
+
+    def __init__(self) -> None:
+        self.rel_s = 0.0
+        self.breaks = 0
+        self._last: float | None = None
+
+    def tick(self, t: float) -> float:
+        if self._last is not None:
+            gap = t - self._last
+            if 0.0 <= gap <= TLOG_BREAK_S:
+                self.rel_s += gap
+            else:
+                self.breaks += 1
+        self._last = t
+        return self.rel_s
+

@@ -147,19 +147,20 @@ class Recorder:
 def record_tlog(tlog: str | Path, rrd: str | Path) -> Path:
     """Turn a .tlog into an .rrd (pose, path, sonar, behaviour, status texts) for ``rerun``."""
     from ..link.state import RobotState
-    from ..link.tlog import read_tlog
+    from ..link.tlog import LogClock, host_systems, read_tlog
 
+    hosts = host_systems(tlog)
     rec = Recorder.to_file(rrd)
     st = RobotState()
-    t0: float | None = None
+    clock = LogClock()
     last_layer: tuple[int, int] | None = None
     for t, m in read_tlog(tlog):
-        if m.get_srcSystem() == 255:  # our own frames
+        rel = clock.tick(t)
+        if m.get_srcSystem() in hosts:  # the ground station's own frames
             if m.get_type() == "SET_POSITION_TARGET_LOCAL_NED" and m.coordinate_frame == 1:
                 rec.log_goal(m.x, -m.y)
             continue
-        t0 = t if t0 is None else t0
-        rec.set_time(t - t0)
+        rec.set_time(rel)
         st.update(m, t)
         mt = m.get_type()
         if mt in ("AGNAV_ODOMETRY", "LOCAL_POSITION_NED") and st.pose is not None:
