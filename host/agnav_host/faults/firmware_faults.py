@@ -78,22 +78,36 @@ def _reset_case(cause: str) -> FaultOutcome:
 
 def _eeprom_case(record: str) -> FaultOutcome:
     """A bit flipped in an EEPROM record, then an external reset (the reset button) at 3 s."""
+    stored: dict[str, int] = {}
+    reloaded: dict[str, int] = {}
+
     def inject(s) -> None:  # noqa: ANN001
+        # the robot profile's parameters as stored in EEPROM before the damage
+        stored.update({k: s.fw.param_get(k) for k in s.plant.firmware_params()})
         s.fw.corrupt_record(record, offset=4, length=1, xor_mask=0x10)
         s.fw.fault_reset("external")
 
-    tr = drive_with_link_faults(T_INJECT_S + 3.0, seed=7, events=[(T_INJECT_S, inject)])
+    def read_back(s) -> None:  # noqa: ANN001
+        reloaded.update({k: s.fw.param_get(k) for k in stored})
+
+    tr = drive_with_link_faults(T_INJECT_S + 3.0, seed=7, events=[(T_INJECT_S, inject), (T_INJECT_S + 2.5, read_back)])
     t_inj = tr.t0_us + int(T_INJECT_S * 1e6)
     txt = tr.texts_after(t_inj)
     after = tr.statuses_after(t_inj)
     words = {"calib": ("calib",), "params": ("param",)}[record]
     told = [t for t in txt if any(w in t.lower() for w in words)]
-    flagged = any(st[3] & FS_CALIB_DEFAULTED for st in after) if record == "calib" else bool(told)
+    if record == "calib":
+        flagged = any(st[3] & FS_CALIB_DEFAULTED for st in after)
+        what = f"CALIB_DEFAULTED health flag {'set' if flagged else 'NOT set'}"
+    else:
+        # a damaged parameter record is not used: the stored profile gives way to the firmware defaults
+        changed = {k: (stored[k], reloaded[k]) for k in stored if k in reloaded and reloaded[k] != stored[k]}
+        flagged = bool(changed)
+        what = ("stored values replaced by defaults: " + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in list(changed.items())[:2])
+                if changed else "the stored parameters were still in use after the reboot")
     ok = bool(told) and flagged
-    msg = (f"STATUSTEXT \"{told[0] if told else (txt[0] if txt else 'NONE')}\"; "
-           + (f"CALIB_DEFAULTED health flag {'set' if flagged else 'NOT set'}" if record == "calib" else
-              "defaults loaded")
-           + f"; {len(after)} status frames after the reboot")
+    msg = (f"STATUSTEXT \"{told[0] if told else (txt[0] if txt else 'NONE')}\"; {what}"
+           f"; {len(after)} status frames after the reboot")
     return FaultOutcome(msg, ok)
 
 

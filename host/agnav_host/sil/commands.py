@@ -61,10 +61,10 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
         return 2
     cfg = SilConfig(firmware_params=tuple(ns.param), firmware=ns.firmware)
     try:
-        s = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
-                                   tlog_path=ns.tlog, config=cfg))
+        res = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
+                                     tlog_path=ns.tlog, config=cfg))
     except (SilBuildError, ValueError, OSError) as e:
         print(f"agnav sil: {getattr(e, 'strerror', None) or e}", file=sys.stderr)
         return 1
-    print(f"agnav sil: stopped at t = {s.t_s:.1f} s, robot at ({s.pose.x_m:.2f}, {s.pose.y_m:.2f})")
+    print(f"agnav sil: stopped at t = {res.t_s:.1f} s, robot at ({res.pose.x_m:.2f}, {res.pose.y_m:.2f})")
     return 0

@@ -158,6 +158,10 @@ class LinkChannel:
         self.bytes_sent = 0
         self.last_delivery_us: int | None = None
 
+    def reset_framer(self) -> None:
+        """Forget a frame half received (its sender is gone), so the next sender's first frame is whole."""
+        self._framer = MavFramer()
+
     def _backlog_bytes(self, t_us: int) -> float:
         if self.params.baud <= 0:
             return 0.0

@@ -86,6 +86,8 @@ class SilSession:
         self.t_us = self.fw.time_us
         self.outputs_log: list[tuple[int, object]] = []
         self.triggers = 0
+        self._uart_pending = b""  # delivered bytes the firmware's receive FIFO had no room for yet
+        self.uart_deferred_bytes = 0  # how many bytes had to wait for room (none is ever dropped)
         self.on_downlink: Callable[[int, bytes], None] | None = None  # raw bytes the radio delivered to the host
         # Per-step calls straight into the C API behind self.fw (hil/sil/sil_api.h, every backend):
         # the outputs struct read without building an Outputs object unless an actuator changed,
@@ -178,12 +180,24 @@ class SilSession:
         now = fw.time_us
         while True:
             nxt = up.next_delivery_us()
+            new = up.receive(now) if nxt is not None and nxt <= now else b""
+            if self._uart_pending or new:
+                # the receive FIFO (4 KiB) takes what it has room for; the rest waits for the firmware
+                # to read some (an unlimited-baud link, or frames bunched behind a latency spike)
+                waiting = len(self._uart_pending)
+                buf = self._uart_pending + new
+                n = fw.uart_write(buf)
+                self._uart_pending = buf[n:]
+                self.uart_deferred_bytes += max(0, len(self._uart_pending) - waiting)
             if nxt is not None and nxt <= now:
-                fw.uart_write(up.receive(now))
                 now = fw.time_us
                 continue
             last = nxt is None or nxt > t1
-            now = step_to(t1 if last else nxt)  # returns the time reached (earlier after a sonar trigger)
+            target = t1 if last else nxt
+            if self._uart_pending:
+                target = min(target, now + 1000)  # 1 ms of firmware, then offer the waiting bytes again
+                last = last and target == t1
+            now = step_to(target)  # returns the time reached (earlier after a sonar trigger)
             trig = take()
             if trig:
                 self.triggers += len(trig)
