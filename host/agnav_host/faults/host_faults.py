@@ -275,11 +275,12 @@ def _case_serial_unplugged() -> FaultOutcome:
         thread_alive = ep._thread.is_alive() if hasattr(ep, "_thread") else True  # noqa: SLF001
         ev = next((e for _, e in ep.events if "transport failed" in e), "NO EVENT")
         ep.close()
-        kept = sum(1 for _ in read_tlog(log))
+        host = ep.mav.srcSystem
+        kept = sum(1 for _, m in read_tlog(log) if m.get_srcSystem() != host)  # the robot's frames in the log
     ok = t_fail is not None and t_down is not None and kept >= rx_before * 0.9 and rx_before > 50 and thread_alive
     return FaultOutcome(f"\"{ev[:70]}\" after {1000 * (t_fail or 0):.0f} ms, link marked down after "
-                        f"{1000 * (t_down or 0):.0f} ms; I/O thread kept retrying; {kept} of {rx_before} frames "
-                        f"received before the pull are in the tlog", ok)
+                        f"{1000 * (t_down or 0):.0f} ms; I/O thread kept retrying; the tlog holds {kept} robot frames ({rx_before} "
+                        f"had been received when the cable was pulled)", ok)
 
 
 def _case_dead_downlink() -> FaultOutcome:
