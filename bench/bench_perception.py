@@ -62,6 +62,7 @@ from agnav_host.perception import (
     detect_ground_obstacles,
     row_method_names,
 )
+from agnav_host.sim.runner import control_every
 from agnav_host.sim.scenario import Scenario, builtin_text, load_scenario, parse_scenario
 from agnav_host.sim.world import Hole
 from agnav_host.types import DriveCommand, Goal, Observation, Pose2D, norm_angle_rad
@@ -81,7 +82,7 @@ def closed_loop(sc: Scenario, ctrl: object, seed: int, duration_s: float,
     robot = sc.make_robot()
     ctrl.reset()  # type: ignore[attr-defined]
     dt = sc.dt_s
-    every = max(1, int(round(1.0 / (sc.control_hz * dt))))
+    every = control_every(sc)
     cmd = DriveCommand()
     out = [(0.0, robot.pose.x_m, robot.pose.y_m, robot.pose.yaw_rad)]
     goal = sc.goals[0] if sc.goals else Goal(0.0, 0.0)

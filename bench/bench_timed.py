@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "host"))
 from agnav_host.planning.registry import make_planner  # noqa: E402
 from agnav_host.planning.timed import (BoundaryState, MovingObstacle, RobotTask, TimedLimits, TimedPlanner,  # noqa: E402
                                        coordinate, plan_timed)
-from agnav_host.sim.runner import robot_spec  # noqa: E402
+from agnav_host.sim.runner import control_every, robot_spec  # noqa: E402
 from agnav_host.sim.scenario import Scenario, load_scenario, parse_scenario  # noqa: E402
 from agnav_host.types import DriveCommand, Goal, Observation, Pose2D, norm_angle_rad  # noqa: E402
 
@@ -94,7 +94,7 @@ def run_single(sc: Scenario, seed: int, *, tracks: bool = False, safety_stop: tu
     rng_robot, rng_laser, rng_tr = (np.random.default_rng(s) for s in ss.spawn(3))
     robot = sc.make_robot()
     dt = sc.dt_s
-    every = max(1, int(round(1.0 / (sc.control_hz * dt))))
+    every = control_every(sc)
     t_end = goal.arrival_s + 6.0
     extras: dict[str, object] = {"goals": list(sc.goals), "goal_index": 0}
     cmd = DriveCommand()
@@ -173,7 +173,7 @@ def run_multi(sc: Scenario, tasks: list[tuple[str, Pose2D, Goal]], seed: int, co
     ss = np.random.SeedSequence(seed)
     rngs = [np.random.default_rng(s) for s in ss.spawn(2 * n)]
     dt = sc.dt_s
-    every = max(1, int(round(1.0 / (sc.control_hz * dt))))
+    every = control_every(sc)
     t_end = max(g.arrival_s or 0.0 for _, _, g in tasks) + 6.0
     cmds = [DriveCommand() for _ in range(n)]
     arrival: list[float | None] = [None] * n

@@ -112,13 +112,7 @@ class CalibTable:
         mag = min(abs(value), self.value_max, side_val[-1])
         if mag < side_val[0]:
             return self._quantise(self.neutral_pwm, 0)
-        if mag == side_val[0]:
-            pwm = side_pwm[0]
-        elif sign > 0:
-            pwm = float(np.interp(mag, side_val, side_pwm))
-        else:
-            pwm = float(np.interp(mag, side_val, side_pwm))
-        return self._quantise(pwm, sign)
+        return self._quantise(float(np.interp(mag, side_val, side_pwm)), sign)
 
     def _quantise(self, pwm: float, sign: int) -> float:
         q = self.quantum_pwm

@@ -28,6 +28,11 @@ def norm_angle_rad(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def norm_angle_arr(a: FloatArray) -> FloatArray:
+    """:func:`norm_angle_rad` element-wise, rad."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
 @dataclass(frozen=True)
 class Pose2D:
     """Planar pose: position in m, heading in rad (0 = +x, CCW positive)."""
@@ -92,6 +97,19 @@ class LaserScan:
     def angles_rad(self) -> FloatArray:
         """Beam angles in the sensor frame, rad, shape (n,)."""
         return self.angle_min_rad + self.angle_increment_rad * np.arange(len(self.ranges_m))
+
+    @property
+    def full_circle(self) -> bool:
+        """True when the beams go all the way round (the last one beside the first: no edge of view)."""
+        n, step = len(self.ranges_m), abs(self.angle_increment_rad)
+        return n > 2 and step * n >= 2.0 * math.pi - 0.5 * step
+
+    def from_first_beam_rad(self, angles_rad: FloatArray) -> FloatArray:
+        """How far sensor-frame angles lie from the first beam in the laser's own sense of turn, in
+        [0, 2 pi): whatever its start angle (-pi..pi or 0..2 pi) and whether it turns clockwise. Beam k is
+        at ``k * abs(angle_increment_rad)``; beyond the last beam is outside the field of view."""
+        sgn = 1.0 if self.angle_increment_rad >= 0 else -1.0
+        return np.mod(sgn * (np.asarray(angles_rad, dtype=float) - self.angle_min_rad), 2.0 * math.pi)
 
     def valid_mask(self) -> npt.NDArray[np.bool_]:
         """True where the beam has a usable return (finite and > 0), shape (n,)."""

@@ -16,6 +16,7 @@ from agnav_host.perception import (
     headland_path,
 )
 from agnav_host.sim.metrics import signed_offset_m
+from agnav_host.sim.runner import control_every
 from agnav_host.sim.scenario import Scenario, parse_scenario
 from agnav_host.types import DriveCommand, Goal, LaserScan, Observation, Pose2D
 
@@ -49,7 +50,7 @@ def _run(sc: Scenario, ctrl: object, duration_s: float, seed: int = 0) -> np.nda
     rng = np.random.default_rng(seed)
     robot = sc.make_robot()
     ctrl.reset()  # type: ignore[attr-defined]
-    every = int(round(1.0 / (sc.control_hz * sc.dt_s)))
+    every = control_every(sc)
     cmd = DriveCommand()
     out = []
     for k in range(int(duration_s / sc.dt_s)):

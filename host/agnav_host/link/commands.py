@@ -23,12 +23,12 @@ from typing import Any
 
 from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand
 from .config import CalibrationConfig, LinkConfig
+from .tlog import MAV_TYPE_GCS
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 _sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
 _LINK_DEFAULTS = LinkConfig()
 _CAL_DEFAULTS = CalibrationConfig()
-MAV_TYPE_GCS = 6
 PNG_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what `--png` writes (matplotlib picks by suffix)
 
 _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [

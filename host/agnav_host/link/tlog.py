@@ -109,7 +109,7 @@ def read_tlog(path: str | Path) -> Iterator[tuple[float, Any]]:
 #: clock set while logging), not time the link ran
 TLOG_BREAK_S = 10.0
 
-MAV_TYPE_GCS = 6
+MAV_TYPE_GCS = 6  # a ground station's HEARTBEAT type (common.xml MAV_TYPE)
 
 
 def host_systems(path: str | Path) -> set[int]:

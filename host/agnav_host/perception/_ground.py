@@ -305,12 +305,10 @@ def scan_with_virtual_obstacles(scan: LaserScan, sensor_pose: Pose2D, points_xy:
     inc = scan.angle_increment_rad
     if inc == 0.0:
         return scan
-    # beam k looks along a0 + k inc; work on an ascending copy (a clockwise laser: angles negated) and take
-    # each post's bearing relative to the first beam in [0, 2 pi), and once more a turn lower and a turn
-    # higher, so that a post across the scan's seam (a full-circle laser, or any start angle) gets its
-    # beams on both sides
-    sgn = 1.0 if inc > 0 else -1.0
-    rel0 = np.mod(sgn * (bearing - scan.angle_min_rad), 2.0 * math.pi)
+    # each post's bearing from the first beam in the laser's sense of turn, and once more a turn lower and
+    # a turn higher, so that a post across the scan's seam (a full-circle laser, or any start angle) gets
+    # its beams on both sides
+    rel0 = scan.from_first_beam_rad(bearing)
     rel = np.concatenate((rel0 - 2.0 * math.pi, rel0, rel0 + 2.0 * math.pi))
     half2 = np.tile(half, 3)
     post = np.tile(np.arange(len(bearing)), 3)

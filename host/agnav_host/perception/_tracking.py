@@ -85,7 +85,7 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
     pts = points_from_scan(scan, pose, ScanParams())
     n = len(scan.ranges_m)
     # a full-circle laser has no edge of view: its last beam sits beside its first
-    full_circle = n > 2 and abs(scan.angle_increment_rad) * n >= 2.0 * math.pi - 0.5 * abs(scan.angle_increment_rad)
+    full_circle = scan.full_circle
     at_edge = np.zeros(len(pts.index), dtype=bool) if full_circle else (pts.index <= 1) | (pts.index >= n - 2)
     # a neighbouring beam returned from well in front: the object is partly hidden behind another
     r = np.where(np.isfinite(scan.ranges_m) & (scan.ranges_m > 0), scan.ranges_m, np.inf)

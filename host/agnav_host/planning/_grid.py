@@ -34,6 +34,11 @@ class OccupancyGrid:
     def cell(self, x: float, y: float) -> tuple[int, int]:
         return int((x - self.x0) / self.res), int((y - self.y0) / self.res)
 
+    def covers(self, x: float, y: float, margin_m: float = 0.0) -> bool:
+        """True when (x, y) lies in the window, at least ``margin_m`` inside its edges."""
+        size = self.n * self.res
+        return self.x0 + margin_m <= x <= self.x0 + size - margin_m and self.y0 + margin_m <= y <= self.y0 + size - margin_m
+
     def centre(self, i: int, j: int) -> tuple[float, float]:
         return self.x0 + (i + 0.5) * self.res, self.y0 + (j + 0.5) * self.res
 

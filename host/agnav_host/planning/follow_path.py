@@ -182,13 +182,6 @@ class FollowPathPlanner:
         self.plan_failures = 0
         self._n_scans = 0
 
-    def _grid_covers(self, x_m: float, y_m: float, margin_m: float = 1.0) -> bool:
-        g = self.grid
-        if g is None:
-            return False
-        size = g.n * g.res
-        return g.x0 + margin_m <= x_m <= g.x0 + size - margin_m and g.y0 + margin_m <= y_m <= g.y0 + size - margin_m
-
     def _new_grid(self, obs: Observation) -> OccupancyGrid:
         """The map's window: ``grid_size_m`` centred on the robot when the goal lies inside it (a metre from
         its edge); otherwise large enough for both with 10 m to spare around them (at most
@@ -228,7 +221,7 @@ class FollowPathPlanner:
                 self._given = np.asarray(given, dtype=float)
                 self.follower.set_path(self._given)
         else:
-            if self.grid is None or not self._grid_covers(obs.goal.x_m, obs.goal.y_m):
+            if self.grid is None or not self.grid.covers(obs.goal.x_m, obs.goal.y_m, margin_m=1.0):
                 self.grid = self._new_grid(obs)
             if obs.scan is not None:
                 v = local_view(obs, spec)

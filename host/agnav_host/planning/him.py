@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
+from ..types import DriveCommand, FloatArray, Observation, norm_angle_arr, norm_angle_rad
 from .base import LocalView, RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
 
 __all__ = ["HimParams", "HimPlanner", "escape_points"]
@@ -150,10 +150,8 @@ class HimPlanner:
                 a = norm_angle_arr(np.arctan2(ly - my, lx - mx) - dyaw)
                 # outside the beams' span, measured from the first beam in the laser's own sense of turn
                 # (any start angle: a full-circle laser's 0..2 pi too)
-                inc = scan.angle_increment_rad
-                span = abs(inc) * (len(scan.ranges_m) - 1)
-                rel = np.mod((a - scan.angle_min_rad) * (1.0 if inc >= 0 else -1.0), 2.0 * math.pi)
-                blind = rel > span + 1e-9
+                span = abs(scan.angle_increment_rad) * (len(scan.ranges_m) - 1)
+                blind = scan.from_first_beam_rad(a) > span + 1e-9
             extra = np.column_stack((lx[blind], ly[blind]))
         self._steps += 1
         if p.memory_s > 0.0 and self._steps % 3 == 1:  # every third scan is plenty
@@ -313,8 +311,6 @@ class HimPlanner:
         return drive_command(spec, v, w)
 
 
-def norm_angle_arr(a: FloatArray) -> FloatArray:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def departing_free_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:

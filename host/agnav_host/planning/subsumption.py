@@ -56,7 +56,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..types import DriveCommand, Observation, norm_angle_rad
+from ..types import DriveCommand, Observation, norm_angle_arr, norm_angle_rad
 from .base import InvalidObservation, RobotSpec, goal_in_robot_frame
 
 __all__ = ["SubsumptionParams", "SubsumptionPlanner", "Layer", "Reason"]
@@ -306,5 +306,3 @@ class SubsumptionPlanner:
         return DriveCommand(speed, 2.0 * half / spec.track_m)
 
 
-def norm_angle_arr(a: np.ndarray) -> np.ndarray:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi

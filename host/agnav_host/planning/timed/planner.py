@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D
+from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_arr
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
@@ -424,5 +424,3 @@ def _is_peer(m: MovingObstacle, peers: list[PlanObstacle], t_s: float, tol_m: fl
     return False
 
 
-def norm_angle_arr(a: FloatArray) -> FloatArray:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
