@@ -15,7 +15,9 @@ from agnav_host.calib import default_speed_table, default_steering_table
 from agnav_host.calibration import fit as F
 from agnav_host.link.calib_wire import TABLE_SPEED, TABLE_STEER, from_calib_table, round_trips
 from agnav_host.planning.timed import BoundaryState, TimedLimits, TimedPlanner, TrackingParams, TrackState, plan_timed, steer_from_arc, track
-from agnav_host.types import Goal, Observation, Pose2D
+from agnav_host.perception import Track
+from agnav_host.planning.timed._obstacles import moving_obstacles_from
+from agnav_host.types import Goal, LaserScan, Observation, Pose2D
 
 
 def _speeds(plan, n=4000):
@@ -156,3 +158,44 @@ def test_static_clearance_is_squeezed_after_searches_that_found_nothing():
     assert all(a >= b for a, b in zip(seen, seen[1:]))
     pl._squeeze = SQUEEZE_STEPS
     assert pl._static_clear_m("moving") == full  # only static searches are squeezed
+
+
+def _wall_ahead_scan(pose: Pose2D, dist_m: float) -> LaserScan:
+    a = np.radians(np.arange(-90.0, 90.5, 1.0))
+    r = np.where(np.abs(a) < math.radians(75), dist_m / np.cos(a), np.inf)
+    return LaserScan(float(a[0]), math.radians(1.0), r, 10.0, 0.0, pose)
+
+
+def _mover_at(x_m, y_m, unseen_s, radius_m=0.3):
+    cov = tuple(tuple(0.0025 if i == j else 0.0 for j in range(4)) for i in range(4))
+    return Track(7, x_m, y_m, 0.0, 1.0, radius_m, 0.05, cov, 2.0, 10, 1.0, unseen_s)
+
+
+@pytest.mark.parametrize("unseen_s", [0.0, 0.5])
+def test_a_return_in_the_way_stops_the_car_even_where_a_track_is_predicted(unseen_s):
+    # a box face 0.3 m ahead, the car still at its start 0.5 s into its plan (the tracker asks for speed);
+    # a moving track beside the face, going away from the plan (no space-time conflict), seen now or
+    # coasting on its velocity: its disc covers the face's returns straight ahead (a phantom coasting over
+    # a box once took the face's returns out of every check and the car drove into the box at 0.5 m/s)
+    goal = Goal(20.0, 0.0, 0.0, 40.0, 0.05)
+    pl = TimedPlanner()
+    pl.reset()
+    pl.step(Observation(0.0, Pose2D(), 0.0, 0.0, goal, None, None, {}))  # plans along +x
+    pose = Pose2D(0.0, 0.0, 0.0)
+    free = pl.step(Observation(0.5, pose, 0.0, 0.0, goal, None, None, {"tracks": []}))
+    assert free.speed_m_s > 0  # nothing in the way: it goes
+    pl.reset()
+    pl.step(Observation(0.0, Pose2D(), 0.0, 0.0, goal, None, None, {}))
+    cmd = pl.step(Observation(0.5, pose, 0.0, 0.0, goal, _wall_ahead_scan(pose, 0.3), None,
+                              {"tracks": [_mover_at(0.6, 0.3, unseen_s, 0.2)]}))
+    assert cmd.speed_m_s == 0.0
+
+
+def test_a_coasting_track_does_not_hide_a_box_from_replanning():
+    # the returns a track takes out of the static checks are only those of movers seen in this scan
+    pl = TimedPlanner()
+    pts = np.array([[0.3, 0.0], [0.3, 0.1], [3.0, 2.0]])
+    seen = moving_obstacles_from([_mover_at(0.35, 0.0, 0.0)], 1.0)
+    kept = pl._static_points(pts, seen, 1.0)
+    assert len(kept) == 1 and tuple(kept[0]) == (3.0, 2.0)
+    assert len(pl._static_points(pts, [], 1.0)) == 3

@@ -13,10 +13,13 @@ Static or moving: from a moving robot the centre of a static object wanders (ano
 view, the object slides out of the laser's range), which gives it a spurious velocity. Two rules keep
 such objects static: a cluster with a return near the end of the laser's range is cut by the range
 or the first or last beams of the scan, or next to a beam that hit something well in front of it
-(partly hidden), is cut and is not used at all (a wall leaving the range, a box leaving the field of
+(partly hidden) or that hit something nearer and was split off by the gap (a surface seen at a grazing
+angle: it falls apart into fragments that change with every scan's noise), is cut and is not used at all (a wall leaving the range, a box leaving the field of
 view, a walker coming out from behind a post would "move" with the robot or too fast), and a track is moving
 only when its speed is well above its uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` from
-where it was first seen. Through an occlusion (a walker behind a box) a track coasts on its velocity
+where it was first seen; a track is confirmed only by ``confirm_hits`` scans with at most
+``TrackerParams.confirm_max_misses`` misses between them (not by three fragments seen over half a
+second). Through an occlusion (a walker behind a box) a track coasts on its velocity
 for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate.
 Two objects seen as one cluster (a walker passing a box) would drag both tracks: with
 ``max_grow_m`` a confirmed track does not take a cluster much larger than itself and coasts instead.
@@ -92,6 +95,21 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
     rp = np.concatenate(([r[-1] if full_circle else np.inf], r, [r[0] if full_circle else np.inf]))
     near_nb = np.minimum(rp[pts.index], rp[pts.index + 2])
     at_edge |= near_nb < pts.ranges_m - 0.3
+    # ... or a neighbouring beam returned from nearer and was split off by the gap: a surface seen at a
+    # grazing angle falls apart into fragments whose extent (and so centre) changes with every scan's
+    # noise; a stationary robot beside a box saw such fragments as walkers at 0.5-1.7 m/s
+    a = scan.angles_rad + pose.yaw_rad
+    with np.errstate(invalid="ignore"):  # inf (no return) times cos 0: nan, never split-and-nearer
+        bx, by = pose.x_m + r * np.cos(a), pose.y_m + r * np.sin(a)
+    for step in (-1, 1):
+        nb = pts.index + step
+        if full_circle:
+            nb = nb % n
+        inside = (nb >= 0) & (nb < n)
+        nbc = np.clip(nb, 0, n - 1)
+        with np.errstate(invalid="ignore"):
+            split = np.hypot(bx[nbc] - pts.xy[:, 0], by[nbc] - pts.xy[:, 1]) > gap_m
+        at_edge |= inside & np.isfinite(r[nbc]) & (r[nbc] < pts.ranges_m) & split
     xy = pts.xy
     if full_circle and len(xy) > 2 and float(np.hypot(*(xy[0] - xy[-1]))) <= gap_m:
         # an object across the seam: start the beam order after the widest gap instead, so it stays whole
@@ -140,6 +158,10 @@ class TrackerParams:
     meas_std_m: float = 0.05
     max_misses: int = 5
     confirm_hits: int = 3
+    # scans a track may miss before it is confirmed: confirmation needs confirm_hits scans with at most
+    # this many misses between them. Three hits spread over 0.5 s can be three fragments of a box face
+    # seen each time from a different part of it: a phantom with a velocity
+    confirm_max_misses: int = 0
     cluster_gap_m: float = 0.2
     max_radius_m: float = 1.0
     # > 0: a track is kept this long after it was last seen, however many scans missed it (occlusions);
@@ -148,6 +170,9 @@ class TrackerParams:
     # a confirmed track does not take a cluster this much larger than itself: two objects seen as one
     # (a walker passing a box) would drag the track between them
     max_grow_m: float = math.inf
+    # ... nor one this much smaller: a two-point fragment of a box face is not the face the track has
+    # followed, and its centre lies elsewhere (taken, it gave a static face a velocity)
+    max_shrink_m: float = math.inf
 
 
 class _KF:
@@ -216,13 +241,12 @@ class ObstacleTracker:
         # greedy nearest-neighbour association, best pairs first
         pairs = []
         for i, tr in enumerate(self._tracks):
-            S = tr.P[:2, :2] + R
-            Si = np.linalg.inv(S)
+            Si = np.linalg.inv(tr.P[:2, :2] + R)
             for j, c in enumerate(clusters):
                 dz = np.array([c.x_m, c.y_m]) - tr.x[:2]
                 if float(np.hypot(*dz)) > p.max_gate_m:
                     continue
-                if tr.hits >= p.confirm_hits and c.radius_m > tr.r + p.max_grow_m:
+                if tr.hits >= p.confirm_hits and not tr.r - p.max_shrink_m <= c.radius_m <= tr.r + p.max_grow_m:
                     continue
                 m2 = float(dz @ Si @ dz)
                 if m2 <= p.gate_sigma**2:
@@ -238,6 +262,7 @@ class ObstacleTracker:
         for i, tr in enumerate(self._tracks):
             if i not in done_t:
                 tr.misses += 1
+        self._tracks = [tr for tr in self._tracks if tr.hits >= p.confirm_hits or tr.misses <= p.confirm_max_misses]
         if p.max_coast_s > 0:
             self._tracks = [tr for tr in self._tracks if (tr.misses <= p.max_misses if tr.hits < p.confirm_hits
                                                           else t_s - tr.t_seen <= p.max_coast_s)]

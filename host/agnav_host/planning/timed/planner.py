@@ -148,7 +148,7 @@ class TimedPlanner:
         self.replan_times_s: list[float] = []  # wall time of each replanning call
         self.replan_cpu_s: list[float] = []  # CPU time of the planner's thread in it (what a shared, loaded machine does not inflate)
         self.events: list[tuple[float, str]] = []
-        self.tracker = ObstacleTracker(TrackerParams(max_coast_s=self.params.track_coast_s, max_grow_m=0.15))
+        self.tracker = ObstacleTracker(TrackerParams(max_coast_s=self.params.track_coast_s, max_grow_m=0.15, max_shrink_m=0.15))
         self.tracked_moving: list[Track] = []  # the tracker's moving tracks at the last step
         self.status: dict[str, Any] = {"feasible": None, "reason": "no plan yet", "earliest_arrival_s": None,
                                        "arrival_s": None, "replans": 0, "last_action": None, "deadline_misses": 0}
@@ -205,7 +205,8 @@ class TimedPlanner:
         self._set_status(plan, "plan")
         self.events.append((obs.t_s, f"plan: {plan.reason}"))
 
-    def _static_points(self, obs: Observation, movers: list[SpaceTimeObstacle]) -> FloatArray:
+    def _returns(self, obs: Observation) -> FloatArray:
+        """Every laser and sonar return within ``detect_range_m + 1`` in the world frame, (n, 2) m."""
         chunks = []
         rng_max = self.params.detect_range_m + 1.0
         if obs.scan is not None:
@@ -222,14 +223,22 @@ class TimedPlanner:
             cx = obs.pose.x_m + self.spec.footprint_offset_m * math.cos(obs.pose.yaw_rad)
             cy = obs.pose.y_m + self.spec.footprint_offset_m * math.sin(obs.pose.yaw_rad)
             chunks.append(np.column_stack((cx + d * np.cos(b[ok]), cy + d * np.sin(b[ok]))))
-        pts = np.concatenate(chunks) if chunks else np.zeros((0, 2))
-        if len(pts) and movers:
-            keep = np.ones(len(pts), dtype=bool)
-            for m in movers:
-                xy, r = m.predict(np.array([obs.t_s]))
-                keep &= np.hypot(pts[:, 0] - xy[0, 0], pts[:, 1] - xy[0, 1]) > r[0] + 0.25
-            pts = pts[keep]
-        return pts
+        return np.concatenate(chunks) if chunks else np.zeros((0, 2))
+
+    @staticmethod
+    def _static_points(pts: FloatArray, seen_movers: list[SpaceTimeObstacle], t_s: float) -> FloatArray:
+        """The returns less those of the moving obstacles (their discs now plus 0.25 m): the planner
+        treats those in space-time instead. Only movers seen in this scan (and peers, placed by their plans)
+        take returns away: a track coasting through an occlusion is where its velocity puts it, which may be
+        on a wall or a box that then vanished from every check (a phantom track once took a box's face away
+        and the car drove into it)."""
+        if not (len(pts) and seen_movers):
+            return pts
+        keep = np.ones(len(pts), dtype=bool)
+        for m in seen_movers:
+            xy, r = m.predict(np.array([t_s]))
+            keep &= np.hypot(pts[:, 0] - xy[0, 0], pts[:, 1] - xy[0, 1]) > r[0] + 0.25
+        return pts[keep]
 
     def _sensor_pose(self, obs: Observation) -> Pose2D:
         if obs.scan is not None and obs.scan.pose is not None:
@@ -287,12 +296,16 @@ class TimedPlanner:
             self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, t) if tr.moving]
             given = self.tracked_moving
         tracks = moving_obstacles_from(given, t)  # type: ignore[arg-type]
+        seen_now = [float(getattr(g, "unseen_s", 0.0)) <= 0.0 for g in given or []]  # type: ignore[union-attr]
         peers = [PlanObstacle(pp, pp.limits.radius_m) for pp in obs.extras.get("peer_plans") or []]  # type: ignore[union-attr]
         if peers and tracks:  # a track where a peer's plan puts it is that robot: its plan predicts it better
-            tracks = [m for m in tracks if not _is_peer(m, peers, t, p.peer_match_m)]
+            keep_t = [not _is_peer(m, peers, t, p.peer_match_m) for m in tracks]
+            tracks = [m for m, k in zip(tracks, keep_t) if k]
+            seen_now = [s for s, k in zip(seen_now, keep_t) if k]
         movers: list[SpaceTimeObstacle] = list(tracks)
         movers += peers
-        pts = self._static_points(obs, movers)
+        returns = self._returns(obs)
+        pts = self._static_points(returns, [m for m, s in zip(tracks, seen_now) if s] + list(peers), t)
         # progress is needed by the checks: a cheap projection first
         self.ts.s_m, _ = self.plan.path.project(obs.pose.x_m, obs.pose.y_m, self.ts.s_m,
                                                 window_m=max(1.0, 3.0 * abs(obs.speed_m_s) + 0.5))
@@ -307,9 +320,9 @@ class TimedPlanner:
         self._prev_speed = obs.speed_m_s
         if v > 0.0 and not self.ts.stopping:
             v = min(max(v / self.speed_ratio, self.limits.v_min_m_s, p.command_min_m_s), self.limits.v_max_m_s)
-        # last line of defence: a return inside the footprint's way within the braking distance
-        if len(pts) and v > 0:
-            blk = first_blocked_s(self.plan, pts, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
+        # last line of defence: any return (a mover's too) inside the footprint's way within the braking distance
+        if len(returns) and v > 0:
+            blk = first_blocked_s(self.plan, returns, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
             if blk is not None:
                 v = 0.0
         # the next plan starts from the tracker's wanted angle; the one sent differs by less than a step
