@@ -463,6 +463,7 @@ def main(argv: list[str] | None = None) -> int:
         ("timed_dynamic, tracks from truth + noise instead", load_scenario("timed_dynamic"), {"tracks": True}),
         ("timed_delay (15 % slow car)", load_scenario("timed_delay"), {}),
         ("timed_delay + 2 s safety stop at 5 s", load_scenario("timed_delay"), {"safety_stop": (5.0, 7.0)}),
+        ("timed_gap (0.45 m between two crates, one against a wall)", load_scenario("timed_gap"), {}),
     ]
     if not ns.quick:
         cases.append(("003 case 1, 100 m, T = 75 s, unknown boxes", load_scenario("timed_003_case1"), {}))

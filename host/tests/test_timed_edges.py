@@ -199,3 +199,23 @@ def test_a_coasting_track_does_not_hide_a_box_from_replanning():
     kept = pl._static_points(pts, seen, 1.0)
     assert len(kept) == 1 and tuple(kept[0]) == (3.0, 2.0)
     assert len(pl._static_points(pts, [], 1.0)) == 3
+
+
+def test_the_last_line_of_defence_also_watches_the_arc_the_car_is_on():
+    # the plan runs along +x; the car lags it, turned 0.5 rad left, and a post stands 0.4 m ahead along the
+    # car's heading, 0.19 m from the plan's line (clear of the plan's footprint disc, 0.16 m): the car
+    # must stop (turning into a gap, a car lagging its plan once swept a crate's corner the plan cleared)
+    goal = Goal(20.0, 0.0, 0.0, 40.0, 0.05)
+    pose = Pose2D(0.0, 0.0, 0.5)
+    a = np.radians(np.arange(-90.0, 90.5, 1.0))
+    r = np.full(len(a), np.inf)
+    r[90] = 0.4  # the beam straight ahead of the car
+    scan = LaserScan(float(a[0]), math.radians(1.0), r, 10.0, 0.5, pose)
+    cmds = []
+    for with_post in (False, True):
+        pl = TimedPlanner()
+        pl.reset()
+        pl.step(Observation(0.0, Pose2D(), 0.0, 0.0, goal, None, None, {}))
+        cmds.append(pl.step(Observation(0.5, pose, 0.5, 0.0, goal, scan if with_post else None, None, {"tracks": []})))
+    assert cmds[0].speed_m_s > 0
+    assert cmds[1].speed_m_s == 0.0

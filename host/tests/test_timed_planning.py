@@ -171,10 +171,10 @@ def test_registry_builds_the_timed_planner():
     assert isinstance(p, TimedPlanner) and p.name == "timed"
 
 
-@pytest.mark.parametrize("name", ["timed_static", "timed_delay"])
+@pytest.mark.parametrize("name", ["timed_static", "timed_delay", "timed_gap"])
 def test_timed_planner_in_the_simulator(name):
-    """Unknown static obstacles (laser) / a 15 % slow car with the dead band: arrive within 5 cm and
-    0.2 s of the set time."""
+    """Unknown static obstacles (laser) / a 15 % slow car with the dead band / a 0.45 m gap between two
+    crates, one against a wall: arrive within 5 cm and 0.2 s of the set time."""
     r = run_scenario(load_scenario(name), "timed", seed=1)
     m = r.metrics
     assert r.end_reason == "arrived", r.end_reason
@@ -182,6 +182,36 @@ def test_timed_planner_in_the_simulator(name):
     assert abs(m.arrival_time_error_s) <= 0.2, m.arrival_time_error_s
     assert m.final_heading_error_deg <= 2.0
     assert m.min_clearance_m > 0.0
+
+
+def _gap_run(seed, monkeypatch=None, squeeze=True, beside=True, centred=True):
+    from agnav_host.planning.timed import planner as P
+
+    if monkeypatch is not None:
+        if not squeeze:
+            monkeypatch.setattr(P.TimedPlanner, "_static_clear_m", lambda self, why: self.params.static_clear_m)
+        if not beside:
+            monkeypatch.setattr(P.TimedPlanner, "_beside_blocking", lambda self, pts, c, blocks, s_blk_m: c)
+        if not centred:
+            monkeypatch.setattr(P.TimedPlanner, "_centred_in_gap", lambda self, pts, via, s_blk_m: None)
+    return run_scenario(load_scenario("timed_gap"), "timed", seed=seed)
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_through_the_gap_only_with_each_of_its_three_parts(seed, monkeypatch):
+    # timed_gap: the car passes only when the planner (1) takes the crate, not the crate and the wall it
+    # stands against, as the obstacle of the 003 deviation point, (2) gives up part of its 8 cm static
+    # clearance after searches that found nothing, and (3) moves a deviation point that lands between
+    # two obstacles to the middle of the gap. Without any one it stops before the crates
+    full = _gap_run(seed)
+    assert full.end_reason == "arrived" and abs(full.metrics.arrival_time_error_s) <= 0.2
+    assert full.metrics.min_clearance_m > 0.02
+    for part in ("squeeze", "beside", "centred"):
+        with monkeypatch.context() as m:
+            r = _gap_run(seed, m, **{part: False})
+        assert r.end_reason != "arrived", part
+        assert r.end_reason != "collision", part  # stopping short is safe
+        assert r.trajectory[-1, 1] < 4.3, part  # not through the gap
 
 
 def test_perception_tracks_are_adapted():

@@ -40,12 +40,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_arr
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
-                         first_blocked_s, first_conflict, moving_obstacles_from)
+                         arc_blocked, first_blocked_s, first_conflict, moving_obstacles_from)
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
 from ._resolve import resolve
@@ -246,10 +247,27 @@ class TimedPlanner:
         off = self.spec.footprint_offset_m
         return Pose2D(obs.pose.x_m + off * math.cos(obs.pose.yaw_rad), obs.pose.y_m + off * math.sin(obs.pose.yaw_rad), obs.pose.yaw_rad)
 
-    def _deviation_points(self, obs: Observation, pts: FloatArray, mask: np.ndarray) -> list[tuple[str, tuple[float, float]]]:
+    def _beside_blocking(self, pts: FloatArray, c: npt.NDArray[np.intp], blocks: npt.NDArray[np.bool_], s_blk_m: float,
+                         reach_m: float = 0.5) -> npt.NDArray[np.intp]:
+        """The part of cluster ``c`` (indices into ``pts``, beam order) that lies along the plan within
+        ``reach_m`` of its blocking returns (``blocks``, mask over ``c``): a box standing against a wall is
+        one cluster with the wall, and the whole of it as "the obstacle" is as wide as the wall seen, so
+        every deviation point landed beyond the wall."""
+        assert self.plan is not None
+        _, _, yaw, _ = self.plan.path.sample(s_blk_m)
+        t_hat = np.array([math.cos(float(yaw)), math.sin(float(yaw))])
+        along = pts[c] @ t_hat
+        a_blk = along[blocks]
+        keep = (along >= a_blk.min() - reach_m) & (along <= a_blk.max() + reach_m)
+        return c[keep]
+
+    def _deviation_points(self, obs: Observation, pts: FloatArray, mask: np.ndarray,
+                          s_blk_m: float) -> list[tuple[str, tuple[float, float]]]:
         """003 deviation points (eqs. 4.29-4.32) for the nearest obstacle that blocks the plan, preferred
-        side first. The obstacle is the whole cluster of returns around the blocking ones (its size and
-        mid bearing come from all of it, as in 003's listing: mid of the detected angles)."""
+        side first. The obstacle is the cluster of returns around the blocking ones, as far as it lies
+        along the plan within 0.5 m of them (its size and mid bearing come from all of that, as in 003's
+        listing: mid of the detected angles). A point that lands in a gap between returns on both sides
+        comes first moved to the middle of the gap (:meth:`_centred_in_gap`)."""
         assert self.plan is not None
         sen = self._sensor_pose(obs)
         rel = pts - np.array([sen.x_m, sen.y_m])
@@ -259,6 +277,7 @@ class TimedPlanner:
         dist = np.hypot(rel[:, 0], rel[:, 1])
         blocking = [order[c] for c in clusters if mask[order[c]].any()]
         c = min(blocking, key=lambda idx: float(dist[idx].min()))
+        c = self._beside_blocking(pts, c, mask[c], s_blk_m)
         d_dect = float(dist[c].min())
         theta_dect = sen.yaw_rad + 0.5 * float(b_rel[c].min() + b_rel[c].max())
         ends = pts[c[[int(np.argmin(b_rel[c])), int(np.argmax(b_rel[c]))]]]
@@ -275,8 +294,35 @@ class TimedPlanner:
         for extra in (0.0, 0.3, 0.6):
             for side in (first, -first):
                 _, _, xd, yd = deviation_point(sen.x_m, sen.y_m, d_dect, theta_dect, r_obs, r_sm + extra, p.robot_width_m, side)
-                out.append((f"deviate {'left' if side > 0 else 'right'} (003 point{'' if extra == 0 else f' +{extra:.1f} m'})", (xd, yd)))
+                name = f"deviate {'left' if side > 0 else 'right'}"
+                mid = self._centred_in_gap(pts, (xd, yd), s_blk_m) if extra == 0.0 else None
+                if mid is not None:
+                    out.append((f"{name} (middle of the gap)", mid))
+                out.append((f"{name} (003 point{'' if extra == 0 else f' +{extra:.1f} m'})", (xd, yd)))
         return out
+
+    def _centred_in_gap(self, pts: FloatArray, via_xy: tuple[float, float], s_blk_m: float,
+                        half_length_m: float = 0.35) -> tuple[float, float] | None:
+        """``via_xy`` moved across the plan to the middle of the free stretch it lies in, when returns
+        bound that stretch on both sides within ``half_length_m`` along the plan and it is wider than the
+        footprint; None otherwise (open on a side, too narrow, or already in the middle). The 003 point
+        is placed from one obstacle only: between two crates 0.5 m apart it put the car 4 cm off the
+        middle, where laser noise on the other crate's face kept stopping it."""
+        assert self.plan is not None
+        _, _, yaw, _ = self.plan.path.sample(s_blk_m)
+        t_hat = np.array([math.cos(float(yaw)), math.sin(float(yaw))])
+        n_hat = np.array([-t_hat[1], t_hat[0]])
+        rel = pts - np.asarray(via_xy)
+        along, lat = rel @ t_hat, rel @ n_hat
+        near = np.abs(along) <= half_length_m
+        below, above = lat[near & (lat < 0.0)], lat[near & (lat > 0.0)]
+        if len(below) == 0 or len(above) == 0:
+            return None
+        lo, hi = float(below.max()), float(above.min())
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= 2.0 * self.limits.radius_m or abs(mid) < 0.01:
+            return None
+        return float(via_xy[0] + mid * n_hat[0]), float(via_xy[1] + mid * n_hat[1])
 
     # ---- step ---------------------------------------------------------------------------------
     def step(self, obs: Observation) -> DriveCommand:
@@ -320,10 +366,15 @@ class TimedPlanner:
         self._prev_speed = obs.speed_m_s
         if v > 0.0 and not self.ts.stopping:
             v = min(max(v / self.speed_ratio, self.limits.v_min_m_s, p.command_min_m_s), self.limits.v_max_m_s)
-        # last line of defence: any return (a mover's too) inside the footprint's way within the braking distance
+        # last line of defence: any return (a mover's too) inside the footprint's way within the braking
+        # distance, along the plan and along the arc the car is on (it lags the plan: servo rate, speed lag;
+        # turning into a gap it once swept a crate's corner the plan cleared)
         if len(returns) and v > 0:
-            blk = first_blocked_s(self.plan, returns, self.ts.s_m, self.ts.s_m + 0.25 + obs.speed_m_s * p.stop_lag_s, 0.0)
-            if blk is not None:
+            reach = 0.25 + obs.speed_m_s * p.stop_lag_s
+            blk = first_blocked_s(self.plan, returns, self.ts.s_m, self.ts.s_m + reach, 0.0)
+            arc_m = min(reach, self.plan.path.length_m - self.ts.s_m)  # not past the goal: the car stops there
+            if blk is not None or arc_blocked(obs.pose.x_m, obs.pose.y_m, obs.pose.yaw_rad, self._kappa_now(obs), arc_m,
+                                              returns, self.limits.radius_m, self.limits.footprint_offset_m):
                 v = 0.0
         # the next plan starts from the tracker's wanted angle; the one sent differs by less than a step
         self._last_steer = steer
@@ -332,6 +383,16 @@ class TimedPlanner:
         if 0.0 < abs(steer) < step:
             steer = math.copysign(step, steer)
         return DriveCommand(v, 0.0, steer)
+
+    def _kappa_now(self, obs: Observation) -> float:
+        """The curvature the car is on, 1/m: from its yaw rate when it moves, else from the steering
+        angle last asked for."""
+        if abs(obs.speed_m_s) > 0.1:
+            k = obs.yaw_rate_rad_s / obs.speed_m_s
+        else:
+            k = math.tan(self._last_steer) / self.limits.wheelbase_m
+        k_max = math.tan(self.limits.max_steer_rad) / self.limits.wheelbase_m
+        return max(-k_max, min(k_max, k))
 
     def _static_clear_m(self, why: str) -> float:
         """Clearance a static deviation must keep: ``static_clear_m``, halved after each search in a row
@@ -354,7 +415,7 @@ class TimedPlanner:
             why = "static"
             t0 = time.perf_counter()  # the deviation points are part of the replanning work
             c0 = time.thread_time()
-            extra = self._deviation_points(obs, pts, blk[1])
+            extra = self._deviation_points(obs, pts, blk[1], blk[0])
         elif movers and first_conflict(self.plan, movers, t, t + p.horizon_s, p.moving_margin_m) is not None:
             why = "moving"
         else:
