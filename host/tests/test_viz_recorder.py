@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -31,6 +33,40 @@ def test_small_rrd_is_written(tmp_path):
     data = path.read_bytes()
     assert len(data) > 1000
     assert data[:4] == b"RRF2"  # rerun file magic
+    rerun_cli = Path(sys.executable).parent / "rerun"  # the viewer's CLI, installed with rerun-sdk
+    if rerun_cli.exists():  # the file loads (the pieces of a binary stream written one after another did not)
+        r = subprocess.run([str(rerun_cli), "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_a_recording_that_cannot_be_written_raises_and_leaves_no_file(tmp_path, monkeypatch):
+    pytest.importorskip("rerun")
+    from agnav_host.viz import Recorder
+    from agnav_host.viz import recorder as R
+
+    path = tmp_path / "run.rrd"
+    rec = Recorder.to_file(path)
+    rec.set_time(0.0)
+    rec.log_goal(2.0, 1.0)
+
+    class FullDisk:
+        def __init__(self, *a, **k):
+            self.f = open(*a, **k)
+
+        def write(self, data):
+            self.f.write(data[: len(data) // 2])
+            raise OSError(28, "No space left on device")
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+    monkeypatch.setattr(R, "open", FullDisk, raising=False)
+    with pytest.raises(OSError, match="No space"):
+        rec.close()
+    assert not path.exists()  # no truncated recording left behind as if it were one
 
 
 def test_missing_rerun_gives_a_clear_message(monkeypatch, tmp_path):

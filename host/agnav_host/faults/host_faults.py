@@ -155,7 +155,8 @@ def _case_disk_full_sim() -> FaultOutcome:
     with full_disk(96) as (d, how):
         out = d / "run"
         pre = _fsize_limit(96 * 1024) if how == "rlimit" else None
-        p = _agnav("sim", "corridor_obstacles", "--out", str(out), "--quiet", preexec=pre)
+        # 60 s: the run itself takes 2 s; rerun's own file sink once hung the process at exit here
+        p = _agnav("sim", "corridor_obstacles", "--out", str(out), "--quiet", preexec=pre, timeout=60.0)
         clean, line = _clean_error(p)
         summary_ok = False
         try:
@@ -163,9 +164,14 @@ def _case_disk_full_sim() -> FaultOutcome:
         except (OSError, ValueError):
             pass
         kept = sorted(f.name for f in out.glob("*") if f.stat().st_size > 0) if out.is_dir() else []
-        ok = p.returncode == 1 and clean and summary_ok and "full" in p.stderr + line
+        # every line of the message is agnav's (rerun's logger once wrote its own errors around it), and
+        # no truncated recording is left behind as if it were one
+        foreign = [ln for ln in p.stderr.splitlines() if ln.strip() and not ln.startswith("agnav")]
+        ok = (p.returncode == 1 and clean and summary_ok and "full" in p.stderr + line and not foreign
+              and not any(k.endswith(".rrd") for k in kept))
         return FaultOutcome(f"({how}) exit {p.returncode}, \"{line[:80]}\"; kept {', '.join(kept) or 'nothing'}; "
-                            f"summary.json {'valid' if summary_ok else 'MISSING'}", ok)
+                            f"summary.json {'valid' if summary_ok else 'MISSING'}"
+                            + (f"; {len(foreign)} line(s) not from agnav" if foreign else ""), ok)
 
 
 def _case_disk_full_tlog() -> FaultOutcome:
@@ -336,7 +342,7 @@ HOST_CASES = (
               "with no frame at all: exit 2 and says so; never a traceback",
               _case_corrupt_tlog),
     FaultCase("disk full while writing `agnav sim` results", "host",
-              "exit 1, says the disk is full, lists the files kept; summary.json intact", _case_disk_full_sim),
+              "exit 1, says the disk is full (only agnav's own lines), lists the files kept; summary.json intact, no truncated recording", _case_disk_full_sim),
     FaultCase("disk full while recording the telemetry log", "host",
               "error reported once, the link keeps running, the log keeps what was flushed before the disk filled "
               "(at most the last 1 s buffer is lost)",

@@ -487,8 +487,11 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         print(_stats_line(ep), file=sys.stderr)
         ep.close()
         if rec is not None:
-            rec.close()
-            print(f"recording: {ns.rrd} (open with `rerun {ns.rrd}`)", file=sys.stderr)
+            try:
+                rec.close()
+                print(f"recording: {ns.rrd} (open with `rerun {ns.rrd}`)", file=sys.stderr)
+            except OSError as e:
+                print(f"agnav run: recording {ns.rrd} not written: {e.strerror or e}", file=sys.stderr)
 
 
 def _stats_line(ep: Any) -> str:
