@@ -143,7 +143,26 @@ def test_a_robot_standing_beside_boxes_sees_nothing_move(gap_m):
     # a timed-planner car stopped short of such boxes once saw phantom walkers at 0.5-1.7 m/s (two to
     # eight per 20 s), and one of them, coasting over the box, took the box's face out of its checks.
     # Three rules keep them away, each needed here: fragments split off from a nearer return are cut,
-    # confirmation needs consecutive scans, and a confirmed track takes no much smaller cluster
+    # a tentative track missing two scans in a row is dropped, and a confirmed track takes no much smaller cluster
     for x_m in (3.3, 3.4, 3.55):
         for seed in range(3):
             assert _moving_seen_beside_boxes(gap_m, seed, x_m) == set(), f"x {x_m} m, seed {seed}"
+
+
+def test_a_walker_seen_in_every_other_scan_is_still_confirmed_and_moving():
+    # confirmation allows a missed scan in a row (not three hits spread over half a second)
+    from agnav_host.perception import Cluster
+
+    def walk(drop_every, params):
+        tr = ObstacleTracker(params)
+        moving = False
+        for k in range(40):  # 2 s at 20 Hz, walking at 1 m/s across
+            t = k / 20.0
+            seen = drop_every == 0 or k % drop_every != 0
+            clusters = [Cluster(2.0, -1.0 + 1.0 * t, 0.2, 6)] if seen else []
+            moving |= any(m.moving for m in tr.update_clusters(clusters, t))
+        return moving
+
+    assert walk(0, TrackerParams())
+    assert walk(2, TrackerParams())  # every other scan
+    assert not walk(2, TrackerParams(confirm_max_misses=0))  # the rule itself: no miss allowed, never confirmed

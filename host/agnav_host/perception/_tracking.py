@@ -17,9 +17,9 @@ or the first or last beams of the scan, or next to a beam that hit something wel
 angle: it falls apart into fragments that change with every scan's noise), is cut and is not used at all (a wall leaving the range, a box leaving the field of
 view, a walker coming out from behind a post would "move" with the robot or too fast), and a track is moving
 only when its speed is well above its uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` from
-where it was first seen; a track is confirmed only by ``confirm_hits`` scans with at most
-``TrackerParams.confirm_max_misses`` misses between them (not by three fragments seen over half a
-second). Through an occlusion (a walker behind a box) a track coasts on its velocity
+where it was first seen; a track is confirmed only by ``confirm_hits`` scans with no more than
+``TrackerParams.confirm_max_misses`` misses in a row between them (not by three fragments seen over
+half a second). Through an occlusion (a walker behind a box) a track coasts on its velocity
 for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate.
 Two objects seen as one cluster (a walker passing a box) would drag both tracks: with
 ``max_grow_m`` a confirmed track does not take a cluster much larger than itself and coasts instead.
@@ -158,10 +158,10 @@ class TrackerParams:
     meas_std_m: float = 0.05
     max_misses: int = 5
     confirm_hits: int = 3
-    # scans a track may miss before it is confirmed: confirmation needs confirm_hits scans with at most
-    # this many misses between them. Three hits spread over 0.5 s can be three fragments of a box face
-    # seen each time from a different part of it: a phantom with a velocity
-    confirm_max_misses: int = 0
+    # scans in a row a track may miss before it is confirmed (then it is dropped): three hits spread over
+    # 0.5 s can be three fragments of a box face seen each time from a different part of it, a phantom
+    # with a velocity. 1 keeps a walker seen in every other scan (legs at the range's end)
+    confirm_max_misses: int = 1
     cluster_gap_m: float = 0.2
     max_radius_m: float = 1.0
     # > 0: a track is kept this long after it was last seen, however many scans missed it (occlusions);
