@@ -166,3 +166,17 @@ def test_a_walker_seen_in_every_other_scan_is_still_confirmed_and_moving():
     assert walk(0, TrackerParams())
     assert walk(2, TrackerParams())  # every other scan
     assert not walk(2, TrackerParams(confirm_max_misses=0))  # the rule itself: no miss allowed, never confirmed
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 45.0])
+def test_a_large_box_passed_fast_stays_static(yaw_deg):
+    # a 1.5 x 0.8 m box passed at 2 m/s: as other faces come into view its centre wanders by about its
+    # radius, more than MIN_TRAVEL_M (ref 003's 100 m run saw it "move" 0.32 m at up to 0.56 m/s)
+    from agnav_host.sim.world import box_segments
+
+    for lateral in (1.2, 1.6):
+        w = World()
+        w.add_segments(box_segments(6.0, lateral, 1.5, 0.8, math.radians(yaw_deg)))
+        seen = _drive_past(w, t_end=6.0, speed=2.0)
+        assert any(tracks for tracks in seen)
+        assert not any(t.moving for tracks in seen for t in tracks), f"box {lateral} m beside the route"
