@@ -155,3 +155,20 @@ def test_subsumption_wall_alongside_does_not_hold_the_wall_layer_when_the_goal_i
     near_wall[11] = 0.6
     host.step(obs_with(None, (5.0, 0.0), sonar_frame(near_wall)))
     assert host.layer.name == "FOLLOW_WALL"
+
+
+def test_subsumption_does_not_hand_over_to_the_goal_towards_a_post_beside_it():
+    """As the firmware (test_behaviour_wall_does_not_hand_over_towards_a_near_post_on_the_goals_side):
+    a post 6 cm off at 60 deg left, where the front-side sensors do not look, and the goal 27 deg left.
+    Move-to-goal would turn into the post (in a cluttered yard it swept one): the wall layer keeps the
+    robot and turns it away. The goal on the other side, or the post 1 m off, hands over as before."""
+    post = np.full(12, np.nan)
+    post[2] = 0.06  # 60 deg left
+    p = make_planner("subsumption", SPEC)
+    cmd = p.step(obs_with(None, (3.0, 1.5), sonar_frame(post)))
+    assert p.layer.name == "FOLLOW_WALL" and cmd.yaw_rate_rad_s < 0.0
+    p.step(obs_with(None, (3.0, -1.5), sonar_frame(post)))
+    assert p.layer.name == "MOVE_TO_GOAL"
+    post[2] = 1.0
+    p.step(obs_with(None, (3.0, 1.5), sonar_frame(post)))
+    assert p.layer.name == "MOVE_TO_GOAL"

@@ -201,6 +201,7 @@ static struct {
     /* follow-wall sums of frame pre_seq, from behaviour_sonar_frame() (valid when pre_valid) */
     bool pre_valid;
     bool pre_side_clear;
+    uint8_t pre_near; /* CLS_LEFT / CLS_RIGHT: a side sensor there closer than avoid_stop */
     uint32_t pre_seq;
     uint32_t pre_l, pre_r, pre_f;
     uint32_t goal_dist_mm;              /* this tick, when goal seek is on and a goal is set */
@@ -441,6 +442,7 @@ static void wall_sums(const sonar_frame_t *fr, uint8_t n)
      * The dead-ahead sensors (|a| < 15 deg) form a separate front extent f. */
     uint32_t l = 0u, r = 0u, f = 0u;
     bool side_clear = true;
+    uint8_t near = 0u;
     for (uint8_t i = 0; i < n; i++) {
         uint8_t st = fr->status[i];
         if (st != SONAR_VALID && st != SONAR_NO_ECHO) {
@@ -449,6 +451,9 @@ static void wall_sums(const sonar_frame_t *fr, uint8_t n)
         uint16_t rng = fr->ranges_mm[i];
         if ((b.cls[i] & CLS_FRONT_SIDE) != 0u && st == SONAR_VALID && rng < b.engage_mm) {
             side_clear = false;
+        }
+        if (st == SONAR_VALID && rng < b.p.avoid_stop_mm) {
+            near |= (uint8_t)(b.cls[i] & (CLS_LEFT | CLS_RIGHT));
         }
         if ((b.cls[i] & (CLS_AXIS | CLS_LEFT | CLS_RIGHT)) == 0u || b.cos_milli[i] == 0u) {
             continue;
@@ -466,6 +471,7 @@ static void wall_sums(const sonar_frame_t *fr, uint8_t n)
     b.pre_r = r;
     b.pre_f = f;
     b.pre_side_clear = side_clear;
+    b.pre_near = near;
     b.pre_seq = fr->seq;
 }
 
@@ -496,10 +502,14 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
         return false; /* nothing near: lower layers run unrestrained */
     }
     /* Exit condition (ref 002 eq. 8): goal in the front half and nothing on
-     * the front-side sensors (S1, S11) -> leave the wall to move-to-goal. */
+     * the front-side sensors (S1, S11) -> leave the wall to move-to-goal.
+     * Not while a side sensor on the goal's side is closer than avoid_stop:
+     * move-to-goal would turn into what stands there (a post 3 cm off at
+     * 60 deg, beside the front-side sensors, was swept in the simulator). */
     if ((in->mode_flags & BHV_MODE_GOAL_SEEK) != 0u && in->goal_active && side_clear && !blocked) {
         int32_t zeta = b.goal_err_cdeg; /* angle robot heading -> goal */
-        if (zeta >= -9000L && zeta <= 9000L) {
+        uint8_t toward = zeta > 0 ? CLS_LEFT : zeta < 0 ? CLS_RIGHT : 0u;
+        if (zeta >= -9000L && zeta <= 9000L && (b.pre_near & toward) == 0u) {
             return false;
         }
     }

@@ -443,6 +443,28 @@ void test_behaviour_wall_steers_away_from_nearer_side(void)
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "open space: layer abstains");
 }
 
+/* Exit test (ref 002 eq. 8) with a post beside the robot on the goal's side, where the front-side
+ * sensors do not look: move-to-goal would turn into it, so the wall layer keeps the robot (turning
+ * away) while that side has an echo closer than avoid_stop (300 mm). */
+void test_behaviour_wall_does_not_hand_over_towards_a_near_post_on_the_goals_side(void)
+{
+    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
+    in.goal_active = true;
+    in.goal_x_mm = 3000; /* 27 deg to the left */
+    in.goal_y_mm = 1500;
+    set_range(2, 60u); /* a post 6 cm off, 60 deg left */
+    tick();
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FOLLOW_WALL, out.layer);
+    TEST_ASSERT_TRUE_MESSAGE(out.steer_cdeg < 0, "turns right, away from the post");
+    in.goal_y_mm = -1500; /* the goal on the other side: handed over as before */
+    tick();
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
+    in.goal_y_mm = 1500; /* the post 1 m off: handed over towards it */
+    set_range(2, 1000u);
+    tick();
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
+}
+
 /* The sums worked out ahead by behaviour_sonar_frame() (main's sonar task) give the same
  * output as the tick working them out itself; a frame with a new seq is not served stale sums. */
 void test_behaviour_wall_precomputed_frame_matches_tick(void)
@@ -592,6 +614,7 @@ int main(void)
     RUN_TEST(test_behaviour_avoid_abstains_when_mode_flag_clear);
     RUN_TEST(test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance);
     RUN_TEST(test_behaviour_wall_steers_away_from_nearer_side);
+    RUN_TEST(test_behaviour_wall_does_not_hand_over_towards_a_near_post_on_the_goals_side);
     RUN_TEST(test_behaviour_wall_precomputed_frame_matches_tick);
     RUN_TEST(test_behaviour_canyon_timers_bound_left_right_switching_in_dead_end);
     RUN_TEST(test_behaviour_canyon_without_timers_oscillates);

@@ -200,9 +200,14 @@ class SubsumptionPlanner:
         blocked = f >= self.imin
         if l < self.imin and r < self.imin and not blocked:
             return None
-        if side_clear and not blocked and -math.pi / 2 <= err <= math.pi / 2:
+        # ... but not while a side sensor on the goal's side is closer than avoid_stop (as the firmware):
+        # move-to-goal would turn into what stands there (a post 3 cm off the left at 60 deg was swept)
+        near = valid & (rng < p.avoid_stop_m)
+        side = _LEFT if err > 0 else _RIGHT if err < 0 else 0
+        goal_side_near = bool(np.any(near & ((self.cls & side) != 0)))
+        if side_clear and not blocked and -math.pi / 2 <= err <= math.pi / 2 and not goal_side_near:
             return None  # exit condition (ref 002 eq. 8)
-        if (p.wall_goal_exit and p.wall_goal_side_rad > 0 and not blocked and abs(err) <= p.wall_goal_side_rad
+        if (p.wall_goal_exit and p.wall_goal_side_rad > 0 and not blocked and not goal_side_near and abs(err) <= p.wall_goal_side_rad
                 and max(self._timer_end) <= t
                 and not np.any(((self.cls & _FRONT_SIDE) != 0) & valid & (rng < 0.5 * self.engage_m))):
             # host only: front open, goal near the nose, no canyon timer running and the front-side
