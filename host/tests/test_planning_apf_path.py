@@ -122,3 +122,30 @@ def test_follow_path_planner_replanning_on_the_goal_spot_keeps_going():
     for _ in range(40):  # past the replanning period
         cmd = p.step(at_goal)
     assert math.isfinite(cmd.speed_m_s) and math.isfinite(cmd.yaw_rate_rad_s)
+
+
+def test_follow_path_stops_for_a_return_in_the_way_of_the_path_it_keeps():
+    # the path is planned on an empty map and the robot drives it; then a box face shows up 0.175 m
+    # in front of the footprint before the next replan (1 s): the follower would drive on; the last line of
+    # defence stops it (a kept path once brushed a box the map had only just shown: 3 contacts in 100
+    # random yards)
+    from dataclasses import replace
+
+    from _planning_helpers import scan_from_segments
+
+    from agnav_host.types import Goal, Observation
+
+    spec = RobotSpec(radius_m=0.225, max_speed_m_s=0.5)
+    dt = spec.control_dt_s
+    for face, want_stop in ((None, False), (0.4, True)):
+        p = make_planner("follow-path", spec)
+        x, v = 0.0, 0.0
+        for k in range(12):  # 0.8 s on an empty map: up to speed, no replan yet
+            cmd = p.step(Observation(k * dt, Pose2D(x, 0.0, 0.0), v, 0.0, Goal(5.0, 0.0), replace(empty_scan(), pose=Pose2D(x, 0.0, 0.0)), None, {}))
+            v = cmd.speed_m_s
+            x += v * dt
+        assert v > 0.2
+        scan = empty_scan() if face is None else scan_from_segments([(face, -0.5, face, 0.5)])
+        cmd = p.step(Observation(12 * dt, Pose2D(x, 0.0, 0.0), v, 0.0, Goal(5.0, 0.0), replace(scan, pose=Pose2D(x, 0.0, 0.0)), None, {}))
+        assert (cmd.speed_m_s == 0.0) == want_stop
+        assert p.safety_stops == int(want_stop)

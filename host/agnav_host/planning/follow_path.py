@@ -151,10 +151,32 @@ class FollowPathParams:
     grid_res_m: float = 0.1
     replan_s: float = 1.0
     plan_deadline_s: float = 0.05
+    stop_reach_m: float = 0.05  # the last line of defence looks this far along the arc, plus stop_lag_s of travel
+    stop_lag_s: float = 0.4
 
     def __post_init__(self) -> None:
         if not (self.inflate_margin_m >= 0 and self.grid_size_m > 0 and self.grid_res_m > 0 and self.replan_s > 0):
             raise ValueError("FollowPathParams: margin >= 0, grid size/resolution > 0, replan_s > 0")
+
+
+def _arc_hits(xy: FloatArray, v_m_s: float, w_rad_s: float, radius_m: float, reach_m: float, ds_m: float = 0.05) -> bool:
+    """True when a point (robot frame, origin at the footprint centre, x forward; (k, 2) m) lies within
+    ``radius_m`` of the footprint centre anywhere along the arc of speed ``v_m_s`` and yaw rate
+    ``w_rad_s`` over ``reach_m`` (from 0: a point already inside counts)."""
+    if len(xy) == 0:
+        return False
+    near = np.hypot(xy[:, 0], xy[:, 1]) <= reach_m + radius_m
+    if not near.any():
+        return False
+    s = np.append(np.arange(0.0, reach_m, ds_m), reach_m)  # the end itself too
+    k = w_rad_s / v_m_s if v_m_s > 1e-6 else 0.0
+    if abs(k) < 1e-6:
+        cx, cy = s, np.zeros_like(s)
+    else:
+        cx, cy = np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k
+    pts = xy[near]
+    d2 = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2
+    return bool((d2 < radius_m * radius_m).any())
 
 
 class FollowPathPlanner:
@@ -180,6 +202,7 @@ class FollowPathPlanner:
         self._goal_key: tuple[float, float] | None = None
         self._since_plan = math.inf
         self.plan_failures = 0
+        self.safety_stops = 0  # steps the last line of defence stopped the robot
         self._n_scans = 0
 
     def _new_grid(self, obs: Observation) -> OccupancyGrid:
@@ -223,6 +246,7 @@ class FollowPathPlanner:
         else:
             if self.grid is None or not self.grid.covers(obs.goal.x_m, obs.goal.y_m, margin_m=1.0):
                 self.grid = self._new_grid(obs)
+            v = None
             if obs.scan is not None:
                 v = local_view(obs, spec)
                 c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
@@ -239,4 +263,11 @@ class FollowPathPlanner:
                 self._since_plan = 0.0
                 self._replan(obs)
         v_r, w_r = self.follower.update(obs.pose, obs.speed_m_s, obs.yaw_rate_rad_s, spec.control_dt_s)
+        if given is None and v is not None and v_r > 0.0 and _arc_hits(v.xy, v_r, w_r, spec.radius_m,
+                                                                     p.stop_reach_m + v_r * p.stop_lag_s):
+            # last line of defence: a return inside the footprint along the arc being driven, within the
+            # braking distance: stop and keep turning (a path kept after a failed replan, or cut at a
+            # corner by the follower, once brushed a box the map had only just shown)
+            v_r = 0.0
+            self.safety_stops += 1
         return drive_command(spec, v_r, w_r)

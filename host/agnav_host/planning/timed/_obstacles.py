@@ -215,7 +215,7 @@ def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length
     (1/m, CCW positive) from the pose over ``length_m``: the way the car goes if it keeps its steering."""
     if len(points_xy) == 0 or length_m < 0.0:
         return False
-    s = np.arange(0.0, length_m + 1e-9, ds_m)
+    s = np.append(np.arange(0.0, length_m, ds_m), length_m)  # the end itself too
     if abs(kappa_1_m) < 1e-6:
         yaw = np.full(len(s), yaw_rad)
         x, y = x_m + s * math.cos(yaw_rad), y_m + s * math.sin(yaw_rad)
