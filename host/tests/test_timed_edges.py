@@ -219,3 +219,20 @@ def test_the_last_line_of_defence_also_watches_the_arc_the_car_is_on():
         cmds.append(pl.step(Observation(0.5, pose, 0.5, 0.0, goal, scan if with_post else None, None, {"tracks": []})))
     assert cmds[0].speed_m_s > 0
     assert cmds[1].speed_m_s == 0.0
+
+
+def test_blocked_checks_reach_the_end_of_their_stretch():
+    # first_blocked_s and arc_blocked sample every 5 cm; the end of the stretch itself is checked too
+    # (a return just beyond the last whole sample was missed, up to 5 cm of the braking distance)
+    from agnav_host.planning.timed._obstacles import arc_blocked, first_blocked_s
+
+    plan = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(8.0, 0.0, 0.0), 0.0, 16.0, TimedLimits())
+    lim = plan.limits
+    reach = 0.34  # samples at 0, 0.05, ..., 0.30, and 0.34
+    tip = reach + lim.footprint_offset_m + lim.radius_m  # the footprint's front at the end of the stretch
+    pts = np.array([[tip - 0.02, 0.0]])
+    assert first_blocked_s(plan, pts, 0.0, reach, 0.0) is not None
+    assert arc_blocked(0.0, 0.0, 0.0, 0.0, reach, pts, lim.radius_m, lim.footprint_offset_m)
+    far = np.array([[tip + 0.02, 0.0]])
+    assert first_blocked_s(plan, far, 0.0, reach, 0.0) is None
+    assert not arc_blocked(0.0, 0.0, 0.0, 0.0, reach, far, lim.radius_m, lim.footprint_offset_m)

@@ -185,9 +185,10 @@ def first_blocked_s(plan: TimedPlan, points_xy: FloatArray, s_from_m: float, s_t
     and further on; None if clear."""
     if len(points_xy) == 0 or s_to_m <= s_from_m:
         return None
-    s = np.arange(s_from_m, min(s_to_m, plan.path.length_m) + 1e-9, ds_m)
-    if len(s) == 0:
+    s_end = min(s_to_m, plan.path.length_m)
+    if s_end < s_from_m:
         return None
+    s = np.append(np.arange(s_from_m, s_end, ds_m), s_end)  # the end itself too (up to ds_m was left out)
     x, y, yaw, _ = plan.path.sample(s)
     off = plan.limits.footprint_offset_m
     cx, cy = x + off * np.cos(yaw), y + off * np.sin(yaw)
