@@ -7,7 +7,7 @@ instead, to find the layouts nobody thought of. Each yard is 12 x 6 m, walled, w
 and must reach (11, y) with y drawn in 1-5 m, within 90 s. Yard k is the same on every machine
 (numpy seed 1000 + k).
 
-    .venv/bin/python bench/bench_yards.py [--yards 100] [--planners subsumption,flb,vfh] [--jobs 2]
+    .venv/bin/python bench/bench_yards.py [--yards 100] [--first 0] [--planners subsumption,flb,vfh] [--jobs 2]
 
 Prints one row per planner (arrived / timeout / collision counts, the smallest clearance) and every run
 that did not end in arrived or timeout, so it can be replayed with `agnav sim` on the printed yard.
@@ -87,13 +87,14 @@ def run_one(job: tuple[int, str]) -> tuple[int, str, str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--yards", type=int, default=100, help="yards 0..N-1 (default 100)")
+    ap.add_argument("--yards", type=int, default=100, help="how many yards (default 100)")
+    ap.add_argument("--first", type=int, default=0, help="number of the first yard (default 0): --first 100 gives yards the fixes were not tried on")
     ap.add_argument("--planners", default="subsumption,flb,him,vfh,apf,pbf,follow-path",
                     help="comma-separated planner names (default: every reactive planner)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ns = ap.parse_args(argv)
-    if ns.yards < 1 or ns.jobs < 1:
-        ap.error("--yards and --jobs must be >= 1")
+    if ns.yards < 1 or ns.jobs < 1 or ns.first < 0:
+        ap.error("--yards and --jobs must be >= 1, --first >= 0")
     planners = [p.strip() for p in ns.planners.split(",") if p.strip()]
     from agnav_host.sim.runner import planner_names
 
@@ -101,10 +102,10 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         ap.error(f"unknown planner(s) {', '.join(unknown)}; known: {', '.join(planner_names())}")
     t0 = time.time()
-    jobs = [(k, p) for p in planners for k in range(ns.yards)]
+    jobs = [(k, p) for p in planners for k in range(ns.first, ns.first + ns.yards)]
     with ProcessPoolExecutor(ns.jobs) as ex:
         res = list(ex.map(run_one, jobs))
-    print(f"# {ns.yards} random cluttered yards (bench/bench_yards.py), {len(res)} runs\n")
+    print(f"# {ns.yards} random cluttered yards {ns.first}-{ns.first + ns.yards - 1} (bench/bench_yards.py), {len(res)} runs\n")
     print("| planner | arrived | timeout | collision | other | smallest clearance m |")
     print("|---|---|---|---|---|---|")
     for p in planners:
