@@ -224,7 +224,8 @@ def test_the_last_line_of_defence_also_watches_the_arc_the_car_is_on():
 def test_blocked_checks_reach_the_end_of_their_stretch():
     # first_blocked_s and arc_blocked sample every 5 cm; the end of the stretch itself is checked too
     # (a return just beyond the last whole sample was missed, up to 5 cm of the braking distance)
-    from agnav_host.planning.timed._obstacles import arc_blocked, first_blocked_s
+    from agnav_host.planning.base import arc_blocked
+    from agnav_host.planning.timed._obstacles import first_blocked_s
 
     plan = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(8.0, 0.0, 0.0), 0.0, 16.0, TimedLimits())
     lim = plan.limits

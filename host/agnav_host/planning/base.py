@@ -44,6 +44,7 @@ __all__ = [
     "drive_command",
     "free_distances_m",
     "clip",
+    "arc_blocked",
 ]
 
 
@@ -291,3 +292,29 @@ def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_wid
     dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
     dist = np.where(block, np.maximum(dist, 0.0), np.inf)
     return np.minimum(out, dist.min(axis=1))
+
+
+def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length_m: float, points_xy: FloatArray,
+                radius_m: float, footprint_offset_m: float, ds_m: float = 0.05) -> bool:
+    """True when a point ((k, 2) m, in the frame of the pose) lies inside the footprint disc
+    (``radius_m``, centred ``footprint_offset_m`` ahead of the reference point) anywhere along the arc of
+    curvature ``kappa_1_m`` (1/m, CCW positive) from the pose over ``length_m``, both ends included: the
+    way the robot goes if it keeps its turn. The planners' last line of defence (timed, follow-path)."""
+    if len(points_xy) == 0 or length_m < 0.0:
+        return False
+    s = np.append(np.arange(0.0, length_m, ds_m), length_m)  # the end itself too
+    if abs(kappa_1_m) < 1e-6:
+        yaw = np.full(len(s), yaw_rad)
+        x, y = x_m + s * math.cos(yaw_rad), y_m + s * math.sin(yaw_rad)
+    else:
+        yaw = yaw_rad + kappa_1_m * s
+        x = x_m + (np.sin(yaw) - math.sin(yaw_rad)) / kappa_1_m
+        y = y_m - (np.cos(yaw) - math.cos(yaw_rad)) / kappa_1_m
+    cx, cy = x + footprint_offset_m * np.cos(yaw), y + footprint_offset_m * np.sin(yaw)
+    reach = length_m + footprint_offset_m + radius_m
+    near = np.hypot(points_xy[:, 0] - x_m, points_xy[:, 1] - y_m) <= reach
+    if not near.any():
+        return False
+    pts = points_xy[near]
+    d2 = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2
+    return bool((d2 < radius_m * radius_m).any())

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
-from .base import DeadlineMissed, NoPathFound, RobotSpec, drive_command, local_view
+from .base import DeadlineMissed, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
 
 __all__ = ["PathFollowerParams", "PathFollower", "FollowPathParams", "FollowPathPlanner"]
 
@@ -159,26 +159,6 @@ class FollowPathParams:
             raise ValueError("FollowPathParams: margin >= 0, grid size/resolution > 0, replan_s > 0")
 
 
-def _arc_hits(xy: FloatArray, v_m_s: float, w_rad_s: float, radius_m: float, reach_m: float, ds_m: float = 0.05) -> bool:
-    """True when a point (robot frame, origin at the footprint centre, x forward; (k, 2) m) lies within
-    ``radius_m`` of the footprint centre anywhere along the arc of speed ``v_m_s`` and yaw rate
-    ``w_rad_s`` over ``reach_m`` (from 0: a point already inside counts)."""
-    if len(xy) == 0:
-        return False
-    near = np.hypot(xy[:, 0], xy[:, 1]) <= reach_m + radius_m
-    if not near.any():
-        return False
-    s = np.append(np.arange(0.0, reach_m, ds_m), reach_m)  # the end itself too
-    k = w_rad_s / v_m_s if v_m_s > 1e-6 else 0.0
-    if abs(k) < 1e-6:
-        cx, cy = s, np.zeros_like(s)
-    else:
-        cx, cy = np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k
-    pts = xy[near]
-    d2 = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2
-    return bool((d2 < radius_m * radius_m).any())
-
-
 class FollowPathPlanner:
     """Follows ``obs.extras["path"]`` when the scenario gives one; otherwise plans with A* on an
     occupancy grid built from the laser (unknown = free), replanning every ``replan_s`` and on a
@@ -263,11 +243,13 @@ class FollowPathPlanner:
                 self._since_plan = 0.0
                 self._replan(obs)
         v_r, w_r = self.follower.update(obs.pose, obs.speed_m_s, obs.yaw_rate_rad_s, spec.control_dt_s)
-        if given is None and v is not None and v_r > 0.0 and _arc_hits(v.xy, v_r, w_r, spec.radius_m,
-                                                                     p.stop_reach_m + v_r * p.stop_lag_s):
-            # last line of defence: a return inside the footprint along the arc being driven, within the
-            # braking distance: stop and keep turning (a path kept after a failed replan, or cut at a
-            # corner by the follower, once brushed a box the map had only just shown)
-            v_r = 0.0
-            self.safety_stops += 1
+        # last line of defence: a return inside the footprint along the arc being driven, within the
+        # braking distance: stop and keep turning (a path kept after a failed replan, or cut at a corner by
+        # the follower, once brushed a box the map had only just shown). The view's origin is the
+        # footprint centre: the arc starts there, with no further offset.
+        if given is None and v is not None and v_r > 0.0:
+            kappa = w_r / v_r if v_r > 1e-6 else 0.0
+            if arc_blocked(0.0, 0.0, 0.0, kappa, p.stop_reach_m + v_r * p.stop_lag_s, v.xy, spec.radius_m, 0.0):
+                v_r = 0.0
+                self.safety_stops += 1
         return drive_command(spec, v_r, w_r)

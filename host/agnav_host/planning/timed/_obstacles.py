@@ -209,31 +209,6 @@ def first_blocked_s(plan: TimedPlan, points_xy: FloatArray, s_from_m: float, s_t
     return float(s[rows[0]]), mask
 
 
-def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length_m: float, points_xy: FloatArray,
-                radius_m: float, footprint_offset_m: float, ds_m: float = 0.05) -> bool:
-    """True when a point (world frame (k, 2) m) lies inside the footprint disc (``radius_m``, centred
-    ``footprint_offset_m`` ahead of the reference point) anywhere along the arc of curvature ``kappa_1_m``
-    (1/m, CCW positive) from the pose over ``length_m``: the way the car goes if it keeps its steering."""
-    if len(points_xy) == 0 or length_m < 0.0:
-        return False
-    s = np.append(np.arange(0.0, length_m, ds_m), length_m)  # the end itself too
-    if abs(kappa_1_m) < 1e-6:
-        yaw = np.full(len(s), yaw_rad)
-        x, y = x_m + s * math.cos(yaw_rad), y_m + s * math.sin(yaw_rad)
-    else:
-        yaw = yaw_rad + kappa_1_m * s
-        x = x_m + (np.sin(yaw) - math.sin(yaw_rad)) / kappa_1_m
-        y = y_m - (np.cos(yaw) - math.cos(yaw_rad)) / kappa_1_m
-    cx, cy = x + footprint_offset_m * np.cos(yaw), y + footprint_offset_m * np.sin(yaw)
-    reach = length_m + footprint_offset_m + radius_m
-    near = np.hypot(points_xy[:, 0] - x_m, points_xy[:, 1] - y_m) <= reach
-    if not near.any():
-        return False
-    pts = points_xy[near]
-    d2 = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2
-    return bool((d2 < radius_m * radius_m).any())
-
-
 def cluster_ordered(points_xy: FloatArray, gap_m: float = 0.3) -> list[FloatArray]:
     """Split points ordered by beam angle into clusters wherever consecutive points are further than
     ``gap_m`` apart; returns index arrays."""

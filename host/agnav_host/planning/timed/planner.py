@@ -44,9 +44,9 @@ import numpy.typing as npt
 
 from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_arr
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
-from ..base import DeadlineMissed, RobotSpec
+from ..base import DeadlineMissed, RobotSpec, arc_blocked
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
-                         arc_blocked, first_blocked_s, first_conflict, moving_obstacles_from)
+                         first_blocked_s, first_conflict, moving_obstacles_from)
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
 from ._resolve import resolve
