@@ -191,9 +191,9 @@ def _gap_run(seed, monkeypatch=None, squeeze=True, beside=True, centred=True):
         if not squeeze:
             monkeypatch.setattr(P.TimedPlanner, "_static_clear_m", lambda self, why: self.params.static_clear_m)
         if not beside:
-            monkeypatch.setattr(P.TimedPlanner, "_beside_blocking", lambda self, pts, c, blocks, s_blk_m: c)
+            monkeypatch.setattr(P.TimedPlanner, "_beside_blocking", staticmethod(lambda pts, c, blocks, t_hat: c))
         if not centred:
-            monkeypatch.setattr(P.TimedPlanner, "_centred_in_gap", lambda self, pts, via, s_blk_m: None)
+            monkeypatch.setattr(P.TimedPlanner, "_centred_in_gap", lambda self, pts, via, t_hat: None)
     return run_scenario(load_scenario("timed_gap"), "timed", seed=seed)
 
 

@@ -247,15 +247,13 @@ class TimedPlanner:
         off = self.spec.footprint_offset_m
         return Pose2D(obs.pose.x_m + off * math.cos(obs.pose.yaw_rad), obs.pose.y_m + off * math.sin(obs.pose.yaw_rad), obs.pose.yaw_rad)
 
-    def _beside_blocking(self, pts: FloatArray, c: npt.NDArray[np.intp], blocks: npt.NDArray[np.bool_], s_blk_m: float,
+    @staticmethod
+    def _beside_blocking(pts: FloatArray, c: npt.NDArray[np.intp], blocks: npt.NDArray[np.bool_], t_hat: FloatArray,
                          reach_m: float = 0.5) -> npt.NDArray[np.intp]:
-        """The part of cluster ``c`` (indices into ``pts``, beam order) that lies along the plan within
-        ``reach_m`` of its blocking returns (``blocks``, mask over ``c``): a box standing against a wall is
-        one cluster with the wall, and the whole of it as "the obstacle" is as wide as the wall seen, so
-        every deviation point landed beyond the wall."""
-        assert self.plan is not None
-        _, _, yaw, _ = self.plan.path.sample(s_blk_m)
-        t_hat = np.array([math.cos(float(yaw)), math.sin(float(yaw))])
+        """The part of cluster ``c`` (indices into ``pts``, beam order) that lies along the plan (unit
+        direction ``t_hat`` where it is blocked) within ``reach_m`` of its blocking returns (``blocks``,
+        mask over ``c``): a box standing against a wall is one cluster with the wall, and the whole of it
+        as "the obstacle" is as wide as the wall seen, so every deviation point landed beyond the wall."""
         along = pts[c] @ t_hat
         a_blk = along[blocks]
         keep = (along >= a_blk.min() - reach_m) & (along <= a_blk.max() + reach_m)
@@ -277,7 +275,9 @@ class TimedPlanner:
         dist = np.hypot(rel[:, 0], rel[:, 1])
         blocking = [order[c] for c in clusters if mask[order[c]].any()]
         c = min(blocking, key=lambda idx: float(dist[idx].min()))
-        c = self._beside_blocking(pts, c, mask[c], s_blk_m)
+        _, _, yaw_blk, _ = self.plan.path.sample(s_blk_m)
+        t_hat = np.array([math.cos(float(yaw_blk)), math.sin(float(yaw_blk))])  # the plan's direction where blocked
+        c = self._beside_blocking(pts, c, mask[c], t_hat)
         d_dect = float(dist[c].min())
         theta_dect = sen.yaw_rad + 0.5 * float(b_rel[c].min() + b_rel[c].max())
         ends = pts[c[[int(np.argmin(b_rel[c])), int(np.argmax(b_rel[c]))]]]
@@ -295,22 +295,19 @@ class TimedPlanner:
             for side in (first, -first):
                 _, _, xd, yd = deviation_point(sen.x_m, sen.y_m, d_dect, theta_dect, r_obs, r_sm + extra, p.robot_width_m, side)
                 name = f"deviate {'left' if side > 0 else 'right'}"
-                mid = self._centred_in_gap(pts, (xd, yd), s_blk_m) if extra == 0.0 else None
+                mid = self._centred_in_gap(pts, (xd, yd), t_hat) if extra == 0.0 else None
                 if mid is not None:
                     out.append((f"{name} (middle of the gap)", mid))
                 out.append((f"{name} (003 point{'' if extra == 0 else f' +{extra:.1f} m'})", (xd, yd)))
         return out
 
-    def _centred_in_gap(self, pts: FloatArray, via_xy: tuple[float, float], s_blk_m: float,
+    def _centred_in_gap(self, pts: FloatArray, via_xy: tuple[float, float], t_hat: FloatArray,
                         half_length_m: float = 0.35) -> tuple[float, float] | None:
-        """``via_xy`` moved across the plan to the middle of the free stretch it lies in, when returns
-        bound that stretch on both sides within ``half_length_m`` along the plan and it is wider than the
-        footprint; None otherwise (open on a side, too narrow, or already in the middle). The 003 point
-        is placed from one obstacle only: between two crates 0.5 m apart it put the car 4 cm off the
-        middle, where laser noise on the other crate's face kept stopping it."""
-        assert self.plan is not None
-        _, _, yaw, _ = self.plan.path.sample(s_blk_m)
-        t_hat = np.array([math.cos(float(yaw)), math.sin(float(yaw))])
+        """``via_xy`` moved across the plan (unit direction ``t_hat``) to the middle of the free stretch it
+        lies in, when returns bound that stretch on both sides within ``half_length_m`` along the plan and
+        it is wider than the footprint; None otherwise (open on a side, too narrow, or already in the
+        middle). The 003 point is placed from one obstacle only: between two crates 0.5 m apart it put the
+        car 4 cm off the middle, where laser noise on the other crate's face kept stopping it."""
         n_hat = np.array([-t_hat[1], t_hat[0]])
         rel = pts - np.asarray(via_xy)
         along, lat = rel @ t_hat, rel @ n_hat
