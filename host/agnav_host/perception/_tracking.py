@@ -14,10 +14,11 @@ view, the object slides out of the laser's range), which gives it a spurious vel
 such objects static: a cluster with a return near the end of the laser's range is cut by the range
 or the first or last beams of the scan, or next to a beam that hit something well in front of it
 (partly hidden) or that hit something nearer and was split off by the gap (a surface seen at a grazing
-angle: it falls apart into fragments that change with every scan's noise), is cut and is not used at all (a wall leaving the range, a box leaving the field of
-view, a walker coming out from behind a post would "move" with the robot or too fast), and a track is moving
-only when its speed is well above its uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` (or its
-own radius, if larger) from where it was first seen; a track is confirmed only by ``confirm_hits`` scans with no more than
+angle: it falls apart into fragments that change with every scan's noise), is cut and is not used at
+all (a wall leaving the range, a box leaving the field of view, a walker coming out from behind a post
+would "move" with the robot or too fast), and a track is moving only when its speed is well above its
+uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` (or its own radius, if larger) from where it
+was first seen; a track is confirmed only by ``confirm_hits`` scans with no more than
 ``TrackerParams.confirm_max_misses`` misses in a row between them (not by three fragments seen over
 half a second). Through an occlusion (a walker behind a box) a track coasts on its velocity
 for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate.
@@ -90,16 +91,13 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
     # a full-circle laser has no edge of view: its last beam sits beside its first
     full_circle = scan.full_circle
     at_edge = np.zeros(len(pts.index), dtype=bool) if full_circle else (pts.index <= 1) | (pts.index >= n - 2)
-    # a neighbouring beam returned from well in front: the object is partly hidden behind another
+    # a neighbouring beam returned from nearer, either well in front (0.3 m: the object is partly hidden
+    # behind another) or split off by the gap (a surface seen at a grazing angle falls apart into
+    # fragments whose extent, and so centre, changes with every scan's noise; a stationary robot beside
+    # a box saw such fragments as walkers at 0.5-1.7 m/s)
     r = np.where(np.isfinite(scan.ranges_m) & (scan.ranges_m > 0), scan.ranges_m, np.inf)
-    rp = np.concatenate(([r[-1] if full_circle else np.inf], r, [r[0] if full_circle else np.inf]))
-    near_nb = np.minimum(rp[pts.index], rp[pts.index + 2])
-    at_edge |= near_nb < pts.ranges_m - 0.3
-    # ... or a neighbouring beam returned from nearer and was split off by the gap: a surface seen at a
-    # grazing angle falls apart into fragments whose extent (and so centre) changes with every scan's
-    # noise; a stationary robot beside a box saw such fragments as walkers at 0.5-1.7 m/s
     a = scan.angles_rad + pose.yaw_rad
-    with np.errstate(invalid="ignore"):  # inf (no return) times cos 0: nan, never split-and-nearer
+    with np.errstate(invalid="ignore"):  # inf (no return) times cos 0: nan, never nearer
         bx, by = pose.x_m + r * np.cos(a), pose.y_m + r * np.sin(a)
     for step in (-1, 1):
         nb = pts.index + step
@@ -107,9 +105,10 @@ def clusters_from_scan(scan: LaserScan, gap_m: float = 0.2, min_points: int = 2,
             nb = nb % n
         inside = (nb >= 0) & (nb < n)
         nbc = np.clip(nb, 0, n - 1)
+        r_nb = r[nbc]
         with np.errstate(invalid="ignore"):
             split = np.hypot(bx[nbc] - pts.xy[:, 0], by[nbc] - pts.xy[:, 1]) > gap_m
-        at_edge |= inside & np.isfinite(r[nbc]) & (r[nbc] < pts.ranges_m) & split
+        at_edge |= inside & (r_nb < pts.ranges_m) & (split | (r_nb < pts.ranges_m - 0.3))
     xy = pts.xy
     if full_circle and len(xy) > 2 and float(np.hypot(*(xy[0] - xy[-1]))) <= gap_m:
         # an object across the seam: start the beam order after the widest gap instead, so it stays whole
@@ -265,12 +264,12 @@ class ObstacleTracker:
         for i, tr in enumerate(self._tracks):
             if i not in done_t:
                 tr.misses += 1
-        self._tracks = [tr for tr in self._tracks if tr.hits >= p.confirm_hits or tr.misses <= p.confirm_max_misses]
-        if p.max_coast_s > 0:
-            self._tracks = [tr for tr in self._tracks if (tr.misses <= p.max_misses if tr.hits < p.confirm_hits
-                                                          else t_s - tr.t_seen <= p.max_coast_s)]
-        else:
-            self._tracks = [tr for tr in self._tracks if tr.misses <= p.max_misses]
+        def keep(tr: _KF) -> bool:
+            if tr.hits < p.confirm_hits:  # tentative
+                return tr.misses <= min(p.max_misses, p.confirm_max_misses)
+            return t_s - tr.t_seen <= p.max_coast_s if p.max_coast_s > 0 else tr.misses <= p.max_misses
+
+        self._tracks = [tr for tr in self._tracks if keep(tr)]
         for j, c in enumerate(clusters):
             if j not in used:
                 self._tracks.append(_KF(c.x_m, c.y_m, c.radius_m, t_s, self._next, p.meas_std_m))
