@@ -55,7 +55,6 @@ class Recorder:
         self._path: list[list[float]] = []  # the driven path's current piece (PATH_PIECE points at most)
         self._piece = 0
         self._poses = 0
-        self._last_path_log = -1e9
 
     @classmethod
     def to_file(cls, path: str | Path, app_id: str = "agnav") -> "Recorder":
@@ -75,12 +74,12 @@ class Recorder:
         return r
 
     @classmethod
-    def spawn(cls, app_id: str = "agnav", save: str | Path | None = None) -> "Recorder":
-        """Live viewer (spawns ``rerun``); also saves when ``save`` is given."""
+    def spawn(cls, app_id: str = "agnav") -> "Recorder":
+        """Live viewer (spawns ``rerun``); nothing is saved (use :meth:`to_file` for a recording)."""
         rr = require_rerun()
         rec = rr.RecordingStream(app_id)
         rec.spawn()
-        return cls(rec, rr, Path(save) if save else None)
+        return cls(rec, rr)
 
     def set_time(self, t_s: float) -> None:
         self.rec.set_time("time", duration=float(t_s))
