@@ -213,7 +213,7 @@ def _robot_spec(robot: Any, cfg: Any) -> Any:
     return RobotSpec(kinematics="ackermann" if ack else "diff_drive", wheelbase_m=p["WHEELBASE_MM"] / 1000.0,
                      track_m=p["TRACK_MM"] / 1000.0,
                      max_speed_m_s=min(cfg.run.max_speed_m_s, p["MAX_SPEED_MM_S"] / 1000.0 or cfg.run.max_speed_m_s),
-                     max_steer_rad=math.radians(p["MAX_STEER_CDEG"] / 100.0))
+                     max_steer_rad=math.radians(p["MAX_STEER_CDEG"] / 100.0), stop_lag_s=0.25 if ack else 0.12)
 
 
 #: A host planner steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
@@ -380,7 +380,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
 
             a = cfg.ardupilot
             spec = RobotSpec(kinematics="ackermann", wheelbase_m=a.wheelbase_m, max_speed_m_s=a.max_speed_m_s,
-                             max_steer_rad=math.radians(a.max_steer_deg))
+                             max_steer_rad=math.radians(a.max_steer_deg), stop_lag_s=0.25)
             robot.start()
         else:
             # The firmware declares link loss after LINK_TIMEOUT_MS (500 ms by default) without a

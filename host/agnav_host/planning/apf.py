@@ -190,7 +190,7 @@ class ApfPlanner:
             self.state = SafetyState.CLEAR
         if self.state == SafetyState.CLEAR:
             if not (front and forward):
-                return drive_command(spec, u, r)
+                return drive_command(spec, u, r, view)
             self.state, self._t_state = SafetyState.STOP, 0.0
         if self.state == SafetyState.STOP and self._t_state >= p.stop_s and abs(obs.speed_m_s) <= 0.02:
             self.state, self._t_state, self._backed = SafetyState.BACKOFF, 0.0, 0.0

@@ -106,7 +106,8 @@ class RobotSpec:
 
     ``kinematics`` is ``"diff_drive"`` or ``"ackermann"``. ``footprint_offset_m``: the footprint
     disc's centre ahead of the reference point (Ackermann: half the wheelbase). Sonar fields describe
-    the ring (bearings of sensor i = i * spacing); ``control_dt_s`` is the planner period.
+    the ring (bearings of sensor i = i * spacing); ``control_dt_s`` is the planner period;
+    ``stop_lag_s`` the drive's speed lag (first-order time constant), used for stopping distances.
     """
 
     kinematics: str = "diff_drive"
@@ -120,6 +121,7 @@ class RobotSpec:
     max_steer_rad: float = math.radians(24.6)
     footprint_offset_m: float = 0.0
     control_dt_s: float = 1.0 / 15.0
+    stop_lag_s: float = 0.12
     sonar_count: int = 12
     sonar_spacing_rad: float = math.radians(30.0)
     sonar_mount_radius_m: float = 0.225
@@ -137,21 +139,45 @@ def clip(v: float, lo: float, hi: float) -> float:
     return lo if v < lo else hi if v > hi else v
 
 
-def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float) -> DriveCommand:
+BRAKE_MARGIN_M = 0.05  # the braking guard looks this far along the arc beyond the stopping distance
+
+
+def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view: "LocalView | None" = None) -> DriveCommand:
     """A (speed, yaw rate) wish turned into the robot's command, limits applied.
 
     Differential drive: speed and yaw rate clipped. Ackermann: the yaw rate becomes the virtual
     front-wheel angle ``atan(L w / v)`` (no turning on the spot: |v| is taken as at least 0.2 m/s for
     the angle, a stop steering like a slow forward move; reversing, the angle changes sign so that the
-    yaw rate keeps the asked sign)."""
+    yaw rate keeps the asked sign), and a forward speed is at least ``min_speed_m_s``.
+
+    ``view`` (the planner's obstacle points): braking guard. When a point lies in the footprint's way
+    along the arc the command drives, within the stopping distance (one control period plus the drive's
+    lag at the commanded speed, plus BRAKE_MARGIN_M), the speed becomes 0 and the turn is kept. A
+    planner's slow-down near an obstacle is otherwise lost on a car whose slowest speed is its
+    calibrated minimum."""
     v = clip(speed_m_s, -spec.max_speed_m_s, spec.max_speed_m_s)
     w = clip(yaw_rate_rad_s, -spec.max_yaw_rate_rad_s, spec.max_yaw_rate_rad_s)
     if spec.kinematics == "diff_drive":
+        if view is not None and v > 0.0 and _brake_now(spec, view, v, w / v):
+            v = 0.0
         return DriveCommand(v, w)
     if v > 0.0:
         v = max(v, spec.min_speed_m_s)
-    steer = math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2))
-    return DriveCommand(v, 0.0, clip(steer, -spec.max_steer_rad, spec.max_steer_rad))
+    steer = clip(math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2)), -spec.max_steer_rad, spec.max_steer_rad)
+    if view is not None and v > 0.0 and _brake_now(spec, view, v, math.tan(steer) / spec.wheelbase_m):
+        v = 0.0
+    return DriveCommand(v, 0.0, steer)
+
+
+def _brake_now(spec: RobotSpec, view: "LocalView", v_m_s: float, kappa_1_m: float) -> bool:
+    """True when ``view``'s points block the footprint's way along the arc (from the reference point)
+    within the stopping distance from ``v_m_s``."""
+    if len(view.xy) == 0:
+        return False
+    reach = BRAKE_MARGIN_M + v_m_s * (spec.control_dt_s + spec.stop_lag_s)
+    off = spec.footprint_offset_m
+    pts = view.xy + np.array([off, 0.0]) if off else view.xy  # the view is centred on the footprint
+    return arc_blocked(0.0, 0.0, 0.0, kappa_1_m, reach, pts, spec.radius_m, off)
 
 
 # ---- geometry helpers --------------------------------------------------------------------------

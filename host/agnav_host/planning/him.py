@@ -297,7 +297,7 @@ class HimPlanner:
                 if abs(a) > math.radians(10.0):
                     return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a))
                 v = 0.3 * spec.max_speed_m_s * min(1.0, free[k] / 0.5) if free[k] > 0.2 else 0.0
-                return drive_command(spec, v, p.yaw_gain * a)
+                return drive_command(spec, v, p.yaw_gain * a, view)
             target = (cur[0], cur[1])
         bearing = math.atan2(target[1], target[0])
         dist = math.hypot(*target)
@@ -308,7 +308,7 @@ class HimPlanner:
         v = spec.max_speed_m_s * math.cos(bearing) ** 2 * min(1.0, ahead / 1.0 + 0.2, d_goal / p.slow_radius_m + 0.2, nose / 0.3 + 0.1)
         if self.subgoal_world is not None:
             v = min(v, spec.max_speed_m_s * max(0.4, min(1.0, dist / 0.8)))
-        return drive_command(spec, v, w)
+        return drive_command(spec, v, w, view)
 
 
 

@@ -173,4 +173,4 @@ class VfhPlanner:
         ahead = float(free_distances_m(view.xy, np.array([steer]), spec.radius_m + 0.02, 1.0)[0])
         v = spec.max_speed_m_s * (1.0 - 0.7 * h_ahead) * max(0.0, math.cos(steer)) ** 2
         v *= min(1.0, d_goal / p.slow_radius_m + 0.2, ahead / 0.6)
-        return drive_command(spec, v, w)
+        return drive_command(spec, v, w, view)

@@ -79,9 +79,10 @@ def robot_spec(sc: Scenario) -> "RobotSpec":
         vmin = p.true_speed.pos_value[0] if p.true_speed is not None and p.true_speed.pos_value else 0.0
         return RobotSpec(kinematics="ackermann", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s, min_speed_m_s=vmin,
                          max_accel_m_s2=p.max_accel_m_s2, track_m=p.track_m, wheelbase_m=p.wheelbase_m,
-                         max_steer_rad=p.max_steer_rad, footprint_offset_m=0.5 * p.wheelbase_m, control_dt_s=dt, **kw)  # type: ignore[arg-type]
+                         max_steer_rad=p.max_steer_rad, footprint_offset_m=0.5 * p.wheelbase_m, control_dt_s=dt,
+                         stop_lag_s=p.speed_tau_s, **kw)  # type: ignore[arg-type]
     return RobotSpec(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s,
-                     max_accel_m_s2=p.max_accel_m_s2, track_m=p.track_m, control_dt_s=dt, **kw)  # type: ignore[arg-type]
+                     max_accel_m_s2=p.max_accel_m_s2, track_m=p.track_m, control_dt_s=dt, stop_lag_s=p.tau_s, **kw)  # type: ignore[arg-type]
 
 
 def _make_controller(sc: Scenario, planner: str) -> Controller:

@@ -97,6 +97,16 @@ class SpeedProfile:
         dt = t - self.t_s[k]
         return self.s_m[k] + self.v_m_s[k] * dt + 0.5 * self.a_m_s2[k] * dt * dt, self.v_m_s[k] + self.a_m_s2[k] * dt
 
+    def coming_to_rest(self, t_rel: float) -> bool:
+        """True while the profile stands still in a dwell at ``t_rel`` (relative), or brakes straight into one."""
+        n = len(self.kind)
+        if n == 0 or not 0.0 <= t_rel < self.t_s[-1]:
+            return False
+        k = min(int(np.searchsorted(self.t_s, t_rel, "right")) - 1, n - 1)
+        if self.kind[k] == "dwell":
+            return True
+        return bool(self.a_m_s2[k] < 0.0) and k + 1 < n and self.kind[k + 1] == "dwell"
+
     def time_at(self, s_m: float) -> float:
         """First time (relative) the profile reaches arc length ``s_m`` (its end time if never)."""
         ts = np.linspace(0.0, self.duration_s, 400)

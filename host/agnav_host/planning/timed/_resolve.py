@@ -12,7 +12,9 @@ An oncoming obstacle (moving against the robot's heading) is passed, not waited 
 (fig. 4.4 b): its deviations go first and the waits last.
 
 When no candidate keeps the arrival time, the clear candidate with the earliest arrival is returned
-(its plan says ``feasible`` False and carries the new earliest arrival). A candidate is clear when it
+(its plan says ``feasible`` False and carries the new earliest arrival). When none is clear even late,
+the same path driven as fast as the car can (*hurry*, early) is the last candidate against movers: a
+car that stops where a crossing obstacle is heading is hit standing. A candidate is clear when it
 has no space-time conflict over the horizon and no static return within the clearance of its
 footprint over the sensed stretch.
 
@@ -40,7 +42,7 @@ from ._obstacles import Conflict, SpaceTimeObstacle, first_blocked_s, first_conf
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
 
-__all__ = ["Resolution", "resolve", "YIELD_DWELLS_S"]
+__all__ = ["Resolution", "resolve", "hurry_plan", "YIELD_DWELLS_S"]
 
 YIELD_DWELLS_S = (0.5, 1.0, 2.0, 3.0, 4.5)
 
@@ -204,9 +206,24 @@ def resolve(start: BoundaryState, goal: BoundaryState, t_now_s: float, arrival_s
                            tags=(label,))
             if consider(p, label) is not None:
                 return finish(p, label)
+        if late is None and try_yield and base is not None:
+            # nothing clear, early or late: the car may be standing where a crossing obstacle will walk
+            # (waiting there is no refuge); as fast as the car can go along the same path is the last try
+            p = hurry_plan(start, goal, t_now_s, limits, vias, base, deadline)
+            tried += 1
+            if _clear(p, obstacles, pts, t_now_s, horizon_s, margin_m, static_clear_m, static_range_m) is None:
+                return finish(p, "hurry (early)")
     except DeadlineMissed:
         if late is None:
             raise
     if late is not None:
         return finish(late[1], late[2] + " (late)")
     return finish(None, "no clear candidate")
+
+
+def hurry_plan(start: BoundaryState, goal: BoundaryState, t_now_s: float, limits: TimedLimits,
+               vias: tuple[BoundaryState, ...], base: TimedPlan | None = None, deadline: float | None = None) -> TimedPlan:
+    """The path from ``start`` through ``vias`` to ``goal`` (``base``'s when given: it must start at ``start``)
+    driven as fast as the limits allow; the plan says ``feasible`` False, as it arrives early."""
+    return plan_timed(start, goal, t_now_s, t_now_s, limits, vias, deadline=deadline, auto_via=False,
+                      path=None if base is None else base.path)

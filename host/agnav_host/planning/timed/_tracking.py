@@ -14,7 +14,8 @@ geometry even when the robot is early or late.
 
 Speed: the profile's speed at time t plus a correction on the along-path error, and the band rule of
 the car: below v_min the command is v_min while the robot is behind or on schedule and 0 when it is
-ahead (it then waits). Near the goal the command drops to 0 once the remaining path is within the
+ahead (it then waits), or while the plan brakes into or stands in a dwell and the robot is less than
+``hold_behind_m`` behind. Near the goal the command drops to 0 once the remaining path is within the
 stopping distance under the speed controller's lag (v * tau), so the car rolls to rest on the goal.
 """
 
@@ -55,7 +56,10 @@ class TrackingParams:
     minimum), m; ``arc_gain`` see the module docstring; ``k_s`` along-path error gain, 1/s;
     ``ahead_wait_m``: ahead of schedule by more than this, a sub-band speed becomes a wait, m;
     ``stop_lag_s``: the speed controller's time constant used for the stopping distance, s;
-    ``brake_m_s2``: the largest deceleration the drive gives (the lag's rate is capped there), m/s^2."""
+    ``brake_m_s2``: the largest deceleration the drive gives (the lag's rate is capped there), m/s^2;
+    ``hold_behind_m``: braking into or standing in a dwell (a yield to an obstacle), the car stays put unless
+    it is behind schedule by more than this, m (creeping at v_min to the planned stopping point would carry
+    it towards what it yields to, and each new stop plan from a rolling start lies further on)."""
 
     lookahead_s: float = 0.7
     lookahead_min_m: float = 0.35
@@ -65,6 +69,7 @@ class TrackingParams:
     stop_lag_s: float = 0.25
     control_dt_s: float = 0.05
     brake_m_s2: float = 2.0
+    hold_behind_m: float = 0.15
 
 
 @dataclass
@@ -128,8 +133,9 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
         return 0.0, steer
     st.stopping = False
     if v < lim.v_min_m_s:
-        if err < -p.ahead_wait_m or v_ref <= 0.0 and err < 0.02:
-            v = 0.0  # early (or in a planned dwell): wait
+        if (err < -p.ahead_wait_m or v_ref <= 0.0 and err < 0.02
+                or err < p.hold_behind_m and plan.profile.coming_to_rest(t_s - plan.t0_s)):
+            v = 0.0  # early, or stopping for a planned dwell (a yield): wait
         else:
             v = lim.v_min_m_s
     return v, steer

@@ -49,7 +49,7 @@ from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluste
                          first_blocked_s, first_conflict, moving_obstacles_from)
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
-from ._resolve import resolve
+from ._resolve import hurry_plan, resolve
 from ._tracking import TrackingParams, TrackState, track
 
 __all__ = ["TimedParams", "TimedPlanner"]
@@ -72,6 +72,7 @@ class TimedParams:
     moving_margin_m: float = 0.12  # clearance kept to predicted moving obstacles / other robots
     horizon_s: float = 6.0  # space-time look-ahead
     delay_replan_m: float = 0.25  # schedule error that triggers a catch-up replan
+    early_retime_s: float = 0.5  # a plan arriving this much before the requested time (after a hurry) is re-timed
     min_replan_interval_s: float = 0.4
     replan_budget_s: float = 0.050  # wall-time backstop of one replanning call, for pathological cases only (the work bound is max_candidates)
     max_candidates: int = 2  # plans built and checked per replanning call; a longer search goes on at the next steps
@@ -419,6 +420,8 @@ class TimedPlanner:
             s_ref, _ = self.plan.profile.eval(t - self.plan.t0_s)
             if float(s_ref) - self.ts.s_m > p.delay_replan_m:
                 why = "delay"
+            elif target.arrival_s is not None and self.plan.arrival_s < target.arrival_s - p.early_retime_s:
+                why = "early"  # a hurry out of a mover's way is over: back to the requested arrival
         if why is None:
             self._search = None
             return
@@ -438,6 +441,12 @@ class TimedPlanner:
             if why == "delay":
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
                 action = "catch-up"
+            elif why == "early":
+                new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
+                action = "re-timed to the requested arrival"
+                if (first_conflict(new, movers, t, t + p.horizon_s, p.moving_margin_m) is not None
+                        or len(pts) and first_blocked_s(new, pts, 0.0, p.detect_range_m, p.static_clear_m) is not None):
+                    new, action = None, "early; the requested arrival is not clear yet"
             else:
                 res = resolve(start, goal, t, arrival, self.limits, vias, movers, pts, horizon_s=p.horizon_s,
                               margin_m=p.moving_margin_m, static_clear_m=self._static_clear_m(why),
@@ -456,13 +465,21 @@ class TimedPlanner:
             new, action = None, f"{why}: budget of {budget * 1e3:.1f} ms exhausted"
             self.status["deadline_misses"] += 1
             self._budget_scale = min(self._budget_scale * 2.0, 16.0)  # give the next try more room
-        if new is None and why == "moving":
-            # nothing clear (yet) and contact within 2 s (1 s while the search goes on): stop and wait
+        if new is None and movers and why not in ("delay", "early"):
+            # nothing clear (yet) and contact with a mover within 2 s (1 s while the search goes on): stop and
+            # wait. Also while a static blockage is being searched round: a walker does not wait for that
             c = first_conflict(self.plan, movers, t, t + (1.0 if searching else 2.0), 0.0)
             if c is not None:
                 self._search = None
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, dwell_first_s=1.0, auto_via=False)
                 action += "; stop and wait"
+                if first_conflict(new, movers, t, t + 2.0, 0.0) is not None:
+                    # stopped here the car would be hit standing (a crossing obstacle heading for where it
+                    # brakes to): get out of the way at full speed when that way is clear
+                    fast = hurry_plan(start, goal, t, self.limits, vias)
+                    if (first_conflict(fast, movers, t, t + p.horizon_s, 0.0) is None
+                            and (not len(pts) or first_blocked_s(fast, pts, 0.0, p.detect_range_m, 0.0) is None)):
+                        new, action = fast, action.replace("; stop and wait", "; hurry out of the way (early)")
         dt = time.perf_counter() - t0
         self.replan_times_s.append(dt)
         self.replan_cpu_s.append(time.thread_time() - c0)

@@ -1,0 +1,290 @@
+"""People walking across a car's way, and the car's slowest speed: the findings of the random yards
+with the ref-003 RC car (bench/bench_yards.py --robot ackermann [--walkers 2 --timed]).
+
+* The timed planner stopped where a walker was heading and was hit there, crept towards what it yielded
+  to, and stayed early after getting out of the way.
+* The reactive planners' slow-downs near an obstacle were lost on a car whose slowest speed is its
+  calibrated minimum (0.435 m/s): the braking guard in ``drive_command`` stops it instead.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agnav_host.planning.base import LocalView, RobotSpec, drive_command
+from agnav_host.planning.timed import BoundaryState, TimedLimits, TrackingParams, TrackState, plan_timed, track
+from agnav_host.sim.runner import _make_controller, run_scenario
+from agnav_host.sim.scenario import parse_scenario
+from agnav_host.types import Pose2D
+
+CAR = '''
+[robot]
+model = "ackermann"
+start = {{ x_m = 0.5, y_m = {y0}, yaw_deg = 0.0 }}
+max_speed_m_s = 1.0
+
+[robot.calib]
+tables = "default"
+
+[laser]
+model = "tim561"
+mount = {{ x_m = 0.15, y_m = 0.0, yaw_deg = 0.0 }}
+
+[[walls]]
+points = [[-0.5, 0.0], [12.0, 0.0], [12.0, 6.0], [-0.5, 6.0]]
+closed = true
+'''
+
+
+def walker_crossing(start_s: float) -> str:
+    """The car on a timed straight run along y = 2 m; a person pacing across it at x = 8.68 m, 0.99 m/s,
+    setting off at ``start_s``."""
+    return f'''[scenario]
+name = "walker_crossing"
+description = "RC car on a timed goal across a walker's beat"
+duration_s = 40.0
+dt_s = 0.02
+control_hz = 15.0
+{CAR.format(y0=2.0)}
+[[goals]]
+x_m = 11.0
+y_m = 2.0
+tolerance_m = 0.25
+arrival_s = 23.5
+
+[[movers]]
+radius_m = 0.25
+speed_m_s = 0.99
+waypoints = [[8.68, 0.4], [8.68, 5.6]]
+loop = true
+start_s = {start_s}
+'''
+
+
+def _run(toml: str, planner: str, **changes: object):
+    sc = parse_scenario(toml, "<test>")
+    ctl = _make_controller(sc, planner)
+    for name, value in changes.items():  # switch one part of a fix off
+        obj, attr = name.split("__")
+        import dataclasses
+
+        setattr(ctl, obj, dataclasses.replace(getattr(ctl, obj), **{attr: value}))
+    return run_scenario(sc, planner, seed=0, controller=ctl), ctl
+
+
+def _first_contact_speed(r) -> float | None:
+    touch = np.flatnonzero(r.trajectory[:, 6] < 0.0)
+    return None if len(touch) == 0 else float(abs(r.trajectory[touch[0], 4]))
+
+
+# ---- timed planner and walkers -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("start_s", [0.5, 1.0])
+def test_timed_car_hurries_out_of_a_walkers_way_rather_than_stop_in_it(start_s, monkeypatch):
+    r, ctl = _run(walker_crossing(start_s), "timed")
+    assert r.end_reason == "arrived"
+    assert float(r.trajectory[:, 6].min()) > 0.3
+    assert any("hurry" in a for _, a in ctl.events)
+    # without the hurry candidate the car stops on the walker's line and is walked into
+    import agnav_host.planning.timed._resolve as R
+    import agnav_host.planning.timed.planner as P
+
+    never = lambda start, goal, t, limits, vias, *a, **k: R.plan_timed(start, goal, t, t + 1e6, limits, vias)  # noqa: E731
+    monkeypatch.setattr(R, "hurry_plan", never)
+    monkeypatch.setattr(P, "hurry_plan", never)
+    r2, _ = _run(walker_crossing(start_s), "timed")
+    assert r2.end_reason == "collision"
+
+
+@pytest.mark.parametrize("start_s", [5.5, 6.0])
+def test_timed_car_yielding_to_a_walker_does_not_creep_into_its_way(start_s):
+    r, _ = _run(walker_crossing(start_s), "timed")
+    assert r.end_reason == "arrived" and float(r.trajectory[:, 6].min()) > 0.1
+    # creeping at v_min to each new stop point carried it onto the walker's line
+    r2, _ = _run(walker_crossing(start_s), "timed", track_params__hold_behind_m=-1.0)
+    assert r2.end_reason == "collision" and _first_contact_speed(r2) > 0.1
+
+
+def test_timed_car_is_retimed_to_its_arrival_after_hurrying():
+    r, ctl = _run(walker_crossing(0.5), "timed")
+    assert any("hurry" in a for _, a in ctl.events)
+    assert any("re-timed" in a for _, a in ctl.events)
+    # the run ends on entering the 0.25 m tolerance, about 0.5 s before the plan's arrival
+    assert abs(r.metrics.arrival_time_error_s + 0.5) < 0.3
+    r2, _ = _run(walker_crossing(0.5), "timed", params__early_retime_s=1e6)
+    assert r2.metrics.arrival_time_error_s < -2.0
+
+
+def test_a_stop_for_a_dwell_holds_the_car_unless_it_is_well_behind():
+    lim = TimedLimits()
+    plan = plan_timed(BoundaryState(0.0, 0.0, 0.0, 0.0, 0.5), BoundaryState(6.0, 0.0, 0.0), 0.0, 12.0, lim,
+                      dwell_first_s=1.0, auto_via=False)
+    for t in (0.2, 0.4, 0.8, 1.2):  # braking into the dwell (0.125 m from 0.5 m/s), then standing in it
+        s_ref, _ = plan.profile.eval(t)
+        assert plan.profile.coming_to_rest(t)
+        # hold_behind_m 0.15 (default) holds it 5 cm behind; a smaller hold, or none (the old rule), sends v_min
+        for tp, behind, moves in ((TrackingParams(), 0.05, False), (TrackingParams(hold_behind_m=0.04), 0.06, True),
+                                  (TrackingParams(hold_behind_m=-1.0), 0.05, True)):
+            x = float(s_ref) - behind
+            v, _ = track(plan, Pose2D(x, 0.0, 0.0), 0.0, t, TrackState(s_m=x), tp)
+            assert (v > 0.0) == moves, (t, behind, v)
+    t_go = plan.profile.t_s[list(plan.profile.kind).index("dwell") + 1] + 0.3  # moving again: no hold
+    assert not plan.profile.coming_to_rest(t_go)
+
+
+def test_a_passive_stop_still_counts_walkers_while_a_static_blockage_is_searched():
+    """The car deviating round a box must still stop for a walker; before, the static search (several
+    control steps) kept the mover check off and the car drove into the walker at 0.28 m/s."""
+    toml = f'''[scenario]
+name = "box_and_walkers"
+description = "timed run past boxes with two people pacing across"
+duration_s = 60.0
+dt_s = 0.02
+control_hz = 15.0
+{CAR.format(y0=3.0)}
+[[goals]]
+x_m = 11.0
+y_m = 4.26
+tolerance_m = 0.25
+arrival_s = 23.6
+
+[[circles]]
+x_m = 7.40
+y_m = 1.28
+radius_m = 0.29
+[[circles]]
+x_m = 9.89
+y_m = 2.69
+radius_m = 0.20
+[[boxes]]
+x_m = 5.91
+y_m = 1.73
+size_x_m = 0.69
+size_y_m = 0.72
+yaw_deg = 25
+[[boxes]]
+x_m = 9.21
+y_m = 1.47
+size_x_m = 0.30
+size_y_m = 1.35
+yaw_deg = 72
+[[boxes]]
+x_m = 6.87
+y_m = 4.40
+size_x_m = 0.96
+size_y_m = 1.33
+yaw_deg = 65
+[[circles]]
+x_m = 9.83
+y_m = 4.27
+radius_m = 0.26
+[[circles]]
+x_m = 2.44
+y_m = 5.06
+radius_m = 0.38
+[[boxes]]
+x_m = 6.04
+y_m = 3.28
+size_x_m = 0.33
+size_y_m = 1.09
+yaw_deg = 47
+
+[[movers]]
+radius_m = 0.25
+speed_m_s = 0.84
+waypoints = [[4.21, 0.4], [4.21, 5.6]]
+loop = true
+start_s = 4.7
+[[movers]]
+radius_m = 0.25
+speed_m_s = 0.99
+waypoints = [[4.77, 0.4], [4.77, 5.6]]
+loop = true
+start_s = 4.8
+'''
+    r, _ = _run(toml, "timed")
+    speed = _first_contact_speed(r)
+    assert speed is None or speed < 0.1  # passive safety: if anything touches, the car stands
+
+
+# ---- the braking guard of drive_command ------------------------------------------------------------
+
+
+def _view(*pts: tuple[float, float]) -> LocalView:
+    xy = np.array(pts, dtype=float).reshape(-1, 2)
+    b = np.arctan2(xy[:, 1], xy[:, 0])
+    o = np.argsort(b)
+    return LocalView(xy[o], np.hypot(xy[o, 0], xy[o, 1]), b[o], np.zeros(0))
+
+
+CAR_SPEC = RobotSpec(kinematics="ackermann", radius_m=0.16, max_speed_m_s=1.0, min_speed_m_s=0.435, wheelbase_m=0.174,
+                     max_steer_rad=math.radians(24.6), footprint_offset_m=0.087, stop_lag_s=0.25)
+DIFF_SPEC = RobotSpec(radius_m=0.225, max_speed_m_s=0.5, stop_lag_s=0.12)
+
+
+def test_braking_guard_stops_a_car_whose_slow_down_its_minimum_speed_would_eat():
+    # a planner slowing to 0.1 m/s for a post 0.2 m ahead of the footprint: the car's slowest is 0.435 m/s
+    assert drive_command(CAR_SPEC, 0.1, 0.0).speed_m_s == pytest.approx(0.435)
+    post = _view((0.16 + 0.15, 0.0))
+    cmd = drive_command(CAR_SPEC, 0.1, 0.0, post)
+    assert cmd.speed_m_s == 0.0
+    # the turn is kept (steering into a way out)
+    assert drive_command(CAR_SPEC, 0.1, 0.5, post).steer_rad == pytest.approx(drive_command(CAR_SPEC, 0.1, 0.5).steer_rad)
+    # far enough ahead, or beside the way, it drives on
+    assert drive_command(CAR_SPEC, 0.1, 0.0, _view((1.0, 0.0))).speed_m_s == pytest.approx(0.435)
+    assert drive_command(CAR_SPEC, 0.1, 0.0, _view((0.2, 0.4))).speed_m_s == pytest.approx(0.435)
+    # along a hard left turn, a point straight ahead is not in the way, one on the arc is
+    w = 1.2
+    assert drive_command(CAR_SPEC, 0.5, w, _view((0.45, -0.05))).speed_m_s > 0.0
+    k = math.tan(drive_command(CAR_SPEC, 0.5, w).steer_rad) / 0.174
+    s = 0.15  # the footprint centre 0.15 m along that arc from the rear axle, in the view's frame
+    on_arc = (math.sin(k * s) / k - 0.087 + 0.087 * math.cos(k * s), (1.0 - math.cos(k * s)) / k + 0.087 * math.sin(k * s))
+    assert drive_command(CAR_SPEC, 0.5, w, _view(on_arc)).speed_m_s == 0.0
+
+
+def test_braking_guard_reach_grows_with_speed_on_a_differential_drive():
+    pt = _view((0.225 + 0.12, 0.0))  # 12 cm ahead of the footprint
+    assert drive_command(DIFF_SPEC, 0.5, 0.0, pt).speed_m_s == 0.0  # 0.05 + 0.5 * (1/15 + 0.12) = 0.14 m
+    assert drive_command(DIFF_SPEC, 0.2, 0.0, pt).speed_m_s == pytest.approx(0.2)  # 0.05 + 0.2 * 0.19 = 0.09 m
+    assert drive_command(DIFF_SPEC, 0.0, 0.8, pt).yaw_rate_rad_s == pytest.approx(0.8)  # turning on the spot is left alone
+
+
+def test_fuzzy_planner_on_the_rc_car_does_not_run_into_a_thin_post():
+    toml = f'''[scenario]
+name = "post_ahead"
+description = "RC car, a thin post 2 m ahead"
+duration_s = 60.0
+dt_s = 0.02
+control_hz = 15.0
+{CAR.format(y0=3.0)}
+[sonar]
+enabled = true
+
+[[goals]]
+x_m = 11.0
+y_m = 2.35
+tolerance_m = 0.25
+
+[[circles]]
+x_m = 4.38
+y_m = 1.58
+radius_m = 0.23
+[[circles]]
+x_m = 7.40
+y_m = 2.94
+radius_m = 0.41
+[[circles]]
+x_m = 2.66
+y_m = 2.81
+radius_m = 0.11
+[[circles]]
+x_m = 5.19
+y_m = 5.09
+radius_m = 0.49
+'''
+    r, _ = _run(toml, "flb")
+    assert r.end_reason != "collision" and float(r.trajectory[:, 6].min()) > 0.0
