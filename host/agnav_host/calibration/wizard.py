@@ -339,6 +339,24 @@ class Wizard:
         phi = steer_from_diameter(dia, self.cfg.wheelbase_m, left)
         return StepResult(r.pwm, [math.degrees(phi) * 100.0], r.duration_s, r.distance_m, True, "diameter")
 
+    def _plot(self, fit: FitResult, path: Path, previous: WireTable) -> None:
+        """The fit's PNG at ``path``, if it can be made: the plot only illustrates the fit, so no failure of it
+        (matplotlib missing, folder read-only or removed during the sweep, disk full) loses the fitted table;
+        the reason is said and the wizard goes on to the write."""
+        try:
+            from .plot import plot_fit
+
+            png = plot_fit(fit, path, previous)
+        except RuntimeError as e:  # matplotlib missing
+            self.io.say(str(e))
+            return
+        except Exception as e:  # noqa: BLE001 - any other failure of the plot: report it, keep the table
+            why = getattr(e, "strerror", None) or str(e) or type(e).__name__
+            self.io.say(f"warning: fit plot not written ({path}: {why}); the fitted table is kept")
+            return
+        self.plots.append(png)
+        self.io.say(f"fit plot: {png}")
+
     def _fit_write(self, kind: str, table_id: int, xs: np.ndarray, ys: np.ndarray, previous: WireTable,
                    save: bool | None) -> FitResult:
         c = self.cfg
@@ -352,14 +370,7 @@ class Wizard:
             raise Aborted(f"fit failed: {e}") from None
         self.io.say(fit.summary())
         if self.plot_dir is not None:
-            try:
-                from .plot import plot_fit
-
-                png = plot_fit(fit, self.plot_dir / f"calib_{kind}.png", previous)
-                self.plots.append(png)
-                self.io.say(f"fit plot: {png}")
-            except RuntimeError as e:
-                self.io.say(str(e))
+            self._plot(fit, self.plot_dir / f"calib_{kind}.png", previous)
         if not self._confirm("Write this table to the robot (active at once, verified by read-back)?", moved=True):
             raise Aborted("table not written")
         self.robot.calib_write_verified(fit.table, save=False)

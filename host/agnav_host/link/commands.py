@@ -197,8 +197,14 @@ def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
     except (ConfigError, KeyError_, ValueError) as e:
         _err(cmd, str(e))
         return 2
+    except BrokenPipeError:
+        raise  # stdout closed by the reader (`| head`): cli.main exits quietly
     except (LinkTimeout, CommandFailed, ConnectionError) as e:
         _err(cmd, str(e))
+        return 1
+    except OSError as e:  # a file that could not be read or written late in a command: one line, not a traceback
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        _err(cmd, f"{where}{e.strerror or e}")
         return 1
 
 
@@ -535,6 +541,11 @@ def _cmd_calibrate(ns: argparse.Namespace) -> int:
         v = getattr(ns, k)
         if v is not None:
             setattr(c, k, v)
+    if ns.plot_dir:  # before the link opens: a sweep's plot must not fail on a folder known to be unusable
+        png = Path(ns.plot_dir) / f"calib_{'steer' if ns.table == 'steering' else 'speed'}.png"
+        why = _unwritable_reason(png)
+        if why:
+            raise OutputError(f"--plot-dir {ns.plot_dir}: cannot write there: {why}")
     ep = _open(ns, "calibrate", cfg)
     try:
         w = Wizard(AgnavRobot(ep), c, ConsoleIO(assume_yes=ns.yes), plot_dir=ns.plot_dir)

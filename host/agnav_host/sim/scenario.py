@@ -317,6 +317,32 @@ def _robot(rd: _Reader, data: dict[str, Any]) -> tuple[str, DiffDriveParams | Ac
     return kind, params, start, vmax
 
 
+def _finite_box(v: Any) -> bool:
+    """True for ``[xmin_m, ymin_m, xmax_m, ymax_m]``: four finite numbers (not booleans)."""
+    return (isinstance(v, list) and len(v) == 4
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
+
+
+def _check_meta(rd: _Reader, meta: dict[str, Any]) -> None:
+    """The ``[meta]`` entries the host itself reads, checked when the file is loaded (the rest is passed
+    through to the planners): ``path`` ([[x_m, y_m], ...], >= 2 points, follow-path's given path) and
+    ``landmarks`` ([[x_m, y_m, radius_m], ...], radius_m > 0, the SIL host's surveyed posts)."""
+    mp: Path_ = ("meta",)
+    if "path" in meta:
+        rd.points(meta, "path", mp)
+    rows = meta.get("landmarks")
+    if rows is None:
+        return
+    if not isinstance(rows, list):
+        raise rd.error((*mp, "landmarks"), f"must be a list of [x_m, y_m, radius_m] rows, got {rows!r}")
+    for i, r in enumerate(rows):
+        if (not isinstance(r, list) or len(r) != 3
+                or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in r)
+                or not r[2] > 0):
+            raise rd.error((*mp, "landmarks", i), f"must be a [x_m, y_m, radius_m] row of finite numbers with "
+                                                  f"radius_m > 0, got {r!r}")
+
+
 def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     """Parse and validate a scenario from TOML text; raises ScenarioError."""
     try:
@@ -402,9 +428,9 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         p = ("weeds", i)
         rd.keys(w, p, {"region", "count", "radius_m"})
         reg = w.get("region")
-        if not (isinstance(reg, list) and len(reg) == 4 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in reg)
-                and reg[0] < reg[2] and reg[1] < reg[3]):
-            raise rd.error((*p, "region"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m] with min < max, got {reg!r}")
+        if not (_finite_box(reg) and reg[0] < reg[2] and reg[1] < reg[3]):
+            raise rd.error((*p, "region"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m], finite numbers with min < max, "
+                                           f"got {reg!r}")
         n = rd.integer(w, "count", p, 10)
         rad = rd.num(w, "radius_m", p, 0.02, lo=0.0, lo_open=True)
         xy = wrng.uniform((reg[0], reg[1]), (reg[2], reg[3]), (n, 2))
@@ -488,11 +514,12 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                 raise rd.error(sop, str(e)) from None
 
     meta = rd.table(data, "meta", ())
+    _check_meta(rd, meta)
     bounds = sc.get("bounds")
     if bounds is not None:
-        if not (isinstance(bounds, list) and len(bounds) == 4 and all(isinstance(x, (int, float)) for x in bounds)
-                and bounds[0] < bounds[2] and bounds[1] < bounds[3]):
-            raise rd.error((*sp, "bounds"), "must be [xmin_m, ymin_m, xmax_m, ymax_m] with min < max")
+        if not (_finite_box(bounds) and bounds[0] < bounds[2] and bounds[1] < bounds[3]):
+            raise rd.error((*sp, "bounds"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m], finite numbers with min < max, "
+                                            f"got {bounds!r}")
         world.bounds = tuple(float(x) for x in bounds)  # type: ignore[assignment]
     else:
         xs = [start.x_m] + [g.x_m for g in goals]
@@ -535,6 +562,23 @@ def builtin_descriptions() -> dict[str, str]:
     return out
 
 
+_UTF8_BOM = b"\xef\xbb\xbf"
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+
+
+def _decode(data: bytes, source: str) -> str:
+    """A scenario file's bytes as text: UTF-8, a leading UTF-8 byte-order mark (Windows editors) dropped.
+    Anything else is a :class:`ScenarioError` naming the line of the first byte that is not UTF-8."""
+    if data.startswith(_UTF8_BOM):
+        data = data[len(_UTF8_BOM):]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        what = "UTF-16 text" if data.startswith(_UTF16_BOMS) else f"not UTF-8 text (byte 0x{data[e.start]:02x})"
+        raise ScenarioError("", line, f"cannot read scenario file: {what}; save it as UTF-8", source) from None
+
+
 def load_scenario(name_or_path: str | Path | None = None) -> Scenario:
     """A built-in scenario by name, a scenario file by path, or the default when None."""
     if name_or_path is None:
@@ -545,9 +589,9 @@ def load_scenario(name_or_path: str | Path | None = None) -> Scenario:
     p = Path(s)
     if p.suffix == ".toml" or p.exists():
         try:
-            text = p.read_text(encoding="utf-8")
+            data = p.read_bytes()
         except OSError as e:
             raise ScenarioError("", None, f"cannot read scenario file: {e.strerror}", str(p)) from None
-        return parse_scenario(text, str(p))
+        return parse_scenario(_decode(data, str(p)), str(p))
     raise ScenarioError("", None, f"unknown scenario {s!r} (neither a built-in name nor a .toml file); built-ins: "
                         f"{', '.join(builtin_names())}", s)

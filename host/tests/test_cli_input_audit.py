@@ -1,0 +1,153 @@
+"""Findings of the CLI audit of bad and unusual input (2026-11-24): each test is one finding (A1, A2, ...),
+the command a user typed and what must happen instead of a traceback, a lost run or silent data loss."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
+
+from agnav_host import cli
+
+UNWRITABLE_DIR = "/proc"  # exists, takes no new files (even for root)
+FAST_CAL = ["--settle-s", "0.1", "--hold-s", "0.25", "--max-step-s", "1"]
+
+
+@pytest.fixture(autouse=True)
+def _no_user_config(tmp_path, monkeypatch):
+    """Keep the developer's own ~/.config/agnav out of these tests."""
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
+    monkeypatch.delenv("AGNAV_CONFIG", raising=False)
+
+
+def nowhere() -> str:
+    """A device nobody listens on: a command that got as far as connecting would say "could not open"."""
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return f"tcp:127.0.0.1:{port}"
+
+
+# ---- A1: calibrate --plot-dir ---------------------------------------------------------------------------
+def test_calibrate_unwritable_plot_dir_refused_before_connecting(capsys):
+    bad = f"{UNWRITABLE_DIR}/plots"
+    assert cli.main(["calibrate", "steering", "--device", nowhere(), "--no-tlog", "--yes", "--plot-dir", bad]) == 1
+    err = capsys.readouterr().err
+    assert f"agnav calibrate: --plot-dir {bad}: cannot write there:" in err
+    assert "could not open" not in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_calibrate_plot_failure_after_the_sweep_keeps_and_writes_the_table(tmp_path, capsys, monkeypatch):
+    from agnav_host.calibration import plot
+    from agnav_host.link.fake import FakeRobot
+
+    def fails(fit, path, previous=None, title=None):  # the folder made read-only during the sweep
+        raise PermissionError(1, "Operation not permitted", str(Path(path).parent))
+
+    monkeypatch.setattr(plot, "plot_fit", fails)
+    cfg = tmp_path / "host.toml"
+    cfg.write_text("[calibration]\nsteer_step = 25\npause_s = 0.05\n")
+    with FakeRobot(rate_scale=4) as fr:
+        rc = cli.main(["calibrate", "steering", "--device", fr.device, "--config", str(cfg), "--no-tlog", "--yes",
+                       "--no-save", "--plot-dir", str(tmp_path / "plots")] + FAST_CAL)
+        cap = capsys.readouterr()
+        assert rc == 0, cap.err
+        assert fr.received_of("AGNAV_CALIB_TABLE")  # the fit reached the robot
+    assert "warning: fit plot not written" in cap.out and "Operation not permitted" in cap.out
+    assert "the fitted table is kept" in cap.out and "written and verified" in cap.out
+    assert "Traceback" not in cap.err
+
+
+# ---- scenario files (A2-A6) ------------------------------------------------------------------------------
+SMALL = """[scenario]
+name = "t"
+duration_s = 5.0
+
+[robot]
+model = "diff_drive"
+start = { x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }
+
+[laser]
+model = "tim561"
+
+[[goals]]
+x_m = 3.0
+y_m = 0.0
+"""
+
+
+def sim_refused(capsys, tmp_path: Path, scenario: Path, *extra: str) -> str:
+    """Run ``agnav sim scenario`` expecting a clean exit 2 before the run; return the one error line."""
+    out = tmp_path / "out"
+    rc = cli.main(["sim", str(scenario), "--duration", "1", "--quiet", "--no-plot", "--no-rrd", "--out", str(out), *extra])
+    cap = capsys.readouterr()
+    assert rc == 2, cap.err
+    assert "Traceback" not in cap.err and len(cap.err.strip().splitlines()) == 1, cap.err
+    assert not out.exists() or not any(out.iterdir())
+    return cap.err.strip()
+
+
+# A2: a scenario file that is not UTF-8
+@pytest.mark.parametrize("body, line, what", [
+    (SMALL.replace('"t"', '"caf\u00e9"').encode("latin-1"), 2, "not UTF-8 text (byte 0xe9)"),
+    (SMALL.encode("utf-16"), 1, "UTF-16 text"),
+    (b"\x00\x17\x80garbage\n", 1, "not UTF-8 text (byte 0x80)"),
+    (SMALL.encode() + b"# r\xe9sum\xe9\n", SMALL.count("\n") + 1, "not UTF-8 text (byte 0xe9)"),
+])
+def test_sim_and_sil_name_a_scenario_file_that_is_not_utf8(tmp_path, capsys, body, line, what):
+    f = tmp_path / "bad.toml"
+    f.write_bytes(body)
+    err = sim_refused(capsys, tmp_path, f)
+    assert err == f"agnav sim: {f}:{line}: cannot read scenario file: {what}; save it as UTF-8"
+    assert cli.main(["sil", str(f), "--duration", "1", "--tcp", "tcp:127.0.0.1:0"]) == 2
+    assert capsys.readouterr().err.strip() == err.replace("agnav sim", "agnav sil")
+
+
+def test_sim_accepts_a_scenario_with_a_utf8_bom(tmp_path, capsys):
+    f = tmp_path / "bom.toml"
+    f.write_bytes(b"\xef\xbb\xbf" + SMALL.encode())
+    assert cli.main(["sim", str(f), "--duration", "1", "--quiet", "--no-plot", "--no-rrd", "--out", str(tmp_path / "o")]) == 0
+
+
+# A3, A4, A5: [meta] path / landmarks, [[weeds]] region, bounds: refused when the file is loaded, with file:line
+_N = SMALL.count("\n")
+
+
+@pytest.mark.parametrize("extra, line, field, why", [
+    ('[meta]\npath = "abc"\n', _N + 2, "meta.path", "must be a list of at least 2 [x_m, y_m] points"),
+    ("[meta]\npath = [[0, 0], [1]]\n", _N + 2, "meta.path[1]", "must be a [x_m, y_m] pair of numbers, got [1]"),
+    ("[meta]\npath = [[0, 0], [1, inf]]\n", _N + 2, "meta.path[1]", "must be a [x_m, y_m] pair of numbers"),
+    ('[meta]\nlandmarks = "abc"\n', _N + 2, "meta.landmarks", "must be a list of [x_m, y_m, radius_m] rows"),
+    ("[meta]\nlandmarks = [[1, 2]]\n", _N + 2, "meta.landmarks[0]", "must be a [x_m, y_m, radius_m] row of finite"),
+    ("[meta]\nlandmarks = [[1, 2, 0.1], [1, nan, 0.1]]\n", _N + 2, "meta.landmarks[1]", "row of finite numbers"),
+    ("[meta]\nlandmarks = [[1, 2, 0]]\n", _N + 2, "meta.landmarks[0]", "radius_m > 0"),
+    ("[[weeds]]\nregion = [0, 0, inf, 1]\n", _N + 2, "weeds[0].region", "finite numbers with min < max"),
+])
+def test_malformed_scenario_entries_are_refused_at_load_time(tmp_path, capsys, extra, line, field, why):
+    f = tmp_path / "s.toml"
+    f.write_text(SMALL + extra)
+    err = sim_refused(capsys, tmp_path, f)
+    assert err.startswith(f"agnav sim: {f}:{line}: {field}: ") and why in err, err
+
+
+@pytest.mark.parametrize("bounds", ["[-inf, -inf, inf, inf]", "[true, 0, 5, 5]", "[0, 0, 5, nan]"])
+def test_scenario_bounds_must_be_finite_numbers(tmp_path, capsys, bounds):
+    f = tmp_path / "s.toml"
+    f.write_text(SMALL.replace("duration_s = 5.0\n", f"duration_s = 5.0\nbounds = {bounds}\n"))
+    err = sim_refused(capsys, tmp_path, f)
+    assert err.startswith(f"agnav sim: {f}:4: scenario.bounds: must be [xmin_m, ymin_m, xmax_m, ymax_m], finite"), err
+
+
+def test_malformed_landmarks_refused_before_a_firmware_in_the_loop_run(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text(SMALL + '[meta]\nlandmarks = "abc"\n')
+    assert "meta.landmarks: must be" in sim_refused(capsys, tmp_path, f, "--firmware", "sil")
+
+
+def test_well_formed_meta_path_and_landmarks_still_run(tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text(SMALL + "[meta]\npath = [[0, 0], [3, 0]]\nlandmarks = [[1, 2, 0.08]]\n")
+    assert cli.main(["sim", str(f), "--planner", "follow-path", "--duration", "1", "--quiet", "--no-plot", "--no-rrd",
+                     "--out", str(tmp_path / "o")]) == 0
