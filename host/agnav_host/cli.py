@@ -244,7 +244,7 @@ def _planner_names() -> list[str]:
 )
 def _cmd_sim(ns: argparse.Namespace) -> int:
     from .sim.runner import run_scenario, write_outputs
-    from .sim.scenario import ScenarioError, load_scenario
+    from .sim.scenario import ScenarioError, load_scenario, run_length_problem
     from .types import Goal
 
     from .sim.field_controllers import is_field_controller
@@ -257,6 +257,10 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         sc = load_scenario(ns.scenario)
     except ScenarioError as e:
         print(f"agnav sim: {e}", file=sys.stderr)
+        return 2
+    too_long = None if ns.duration is None else run_length_problem(ns.duration, sc.dt_s, "--duration")
+    if too_long:
+        print(f"agnav sim: --duration {ns.duration:g}: {too_long}", file=sys.stderr)
         return 2
     missing = _missing_sensor(sc, ns.planner)
     if missing:

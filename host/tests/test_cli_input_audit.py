@@ -151,3 +151,36 @@ def test_well_formed_meta_path_and_landmarks_still_run(tmp_path, capsys):
     f.write_text(SMALL + "[meta]\npath = [[0, 0], [3, 0]]\nlandmarks = [[1, 2, 0.08]]\n")
     assert cli.main(["sim", str(f), "--planner", "follow-path", "--duration", "1", "--quiet", "--no-plot", "--no-rrd",
                      "--out", str(tmp_path / "o")]) == 0
+
+
+# A6: huge durations, tiny steps, dense plants, many weeds: refused before anything is allocated
+def test_sim_duration_beyond_the_step_limit_is_refused_before_the_run(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["sim", "canyon", "--duration", "1e7", "--no-plot", "--no-rrd", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("agnav sim: --duration 1e+07: ") and "5e+08 physics steps (29.8 GiB of trajectory)" in err
+    assert "at most 2000000 steps: --duration <= 40000 s" in err and not out.exists()
+
+
+@pytest.mark.parametrize("edit, line, field, why", [
+    (("duration_s = 5.0\n", "duration_s = 5.0\ndt_s = 1e-9\ncontrol_hz = 1\n"), 4, "scenario.dt_s", "5e+09 physics steps"),
+    (("duration_s = 5.0\n", "duration_s = 1e9\n"), 3, "scenario.duration_s", "at most 2000000 steps"),
+    (("", "[[rows]]\npoints = [[0, 2], [5, 2]]\nplant_spacing_m = 1e-9\n"), _N + 3, "rows[0].plant_spacing_m",
+     "1.5e+10 obstacle circles"),
+    (("", "[[weeds]]\nregion = [0, 0, 1, 1]\ncount = 1000000000\n"), _N + 3, "weeds[0].count",
+     "this many weeds would make 1e+09 obstacle circles; at most 1000000"),
+])
+def test_scenario_sizes_beyond_the_limits_are_refused_at_load_time(tmp_path, capsys, edit, line, field, why):
+    f = tmp_path / "s.toml"
+    old, new = edit
+    f.write_text(SMALL.replace(old, new, 1) if old else SMALL + new)
+    err = sim_refused(capsys, tmp_path, f)
+    assert err.startswith(f"agnav sim: {f}:{line}: {field}: ") and why in err, err
+
+
+def test_run_scenario_refuses_a_run_beyond_the_step_limit():
+    from agnav_host.sim.runner import run_scenario
+    from agnav_host.sim.scenario import load_scenario
+
+    with pytest.raises(ValueError, match="at most 2000000 steps"):
+        run_scenario(load_scenario("canyon"), duration_s=1e9)

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 from .controller import STANDINS, Controller, GoalSeekParams, make_standin
 from .metrics import RunMetrics
 from .robots import AckermannParams
-from .scenario import Scenario
+from .scenario import Scenario, run_length_problem
 
 __all__ = ["RunResult", "run_scenario", "control_every", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
 
@@ -157,6 +157,9 @@ def run_scenario(
     duration = sc.duration_s if duration_s is None else duration_s
     if not duration > 0:
         raise ValueError(f"duration_s must be > 0, got {duration}")
+    too_long = run_length_problem(duration, sc.dt_s)
+    if too_long:  # before the trajectory is allocated
+        raise ValueError(too_long)
     ctrl = controller if controller is not None else _make_controller(sc, planner)
     ctrl.reset()
     use_tilted = sc.tilted_laser is not None and bool(getattr(ctrl, "uses_tilted_laser", False))

@@ -22,7 +22,8 @@ from ..calib import CalibError, default_speed_table, default_steering_table
 from ..types import Goal, Pose2D
 from .robots import Ackermann, AckermannParams, DiffDrive, DiffDriveParams, Robot
 from .sensors import Laser2D, LaserSpec, SonarRing, SonarSpec, TiltedLaser, laser_preset
-from .world import Hole, Mover, Rut, Step, World, box_segments, plants_along, polyline_segments, sine_curve
+from .world import (Hole, Mover, Rut, Step, World, box_segments, plants_along, polyline_length_m, polyline_segments,
+                    sine_curve)
 
 __all__ = [
     "ScenarioError",
@@ -34,9 +35,20 @@ __all__ = [
     "builtin_descriptions",
     "DEFAULT_SCENARIO",
     "locate_line",
+    "MAX_STEPS",
+    "MAX_CIRCLES",
+    "run_length_problem",
 ]
 
 DEFAULT_SCENARIO = "corridor_obstacles"
+
+#: Most physics steps in one run, ``duration_s / dt_s``: each is a trajectory sample of 8 numbers (64 B), so
+#: 2 000 000 steps are 128 MB, e.g. 40 000 s (11 h) at the default ``dt_s`` of 0.02 s. Longer runs are refused
+#: before anything is allocated.
+MAX_STEPS = 2_000_000
+#: Most obstacle circles in one world (``[[circles]]``, the plants of ``[[rows]]``, ``[[weeds]]``), checked
+#: before they are made (a crop field of 10 rows of 100 m is about 20 000).
+MAX_CIRCLES = 1_000_000
 
 Path_ = tuple[str | int, ...]
 
@@ -343,6 +355,26 @@ def _check_meta(rd: _Reader, meta: dict[str, Any]) -> None:
                                                   f"radius_m > 0, got {r!r}")
 
 
+def run_length_problem(duration_s: float, dt_s: float, what: str = "duration_s") -> str | None:
+    """Why a run of ``duration_s`` s in physics steps of ``dt_s`` s is refused (more than :data:`MAX_STEPS`
+    steps, with the memory its trajectory would need), or None. ``what`` names the duration in the message."""
+    n = duration_s / dt_s
+    if n <= MAX_STEPS:
+        return None
+    gib = (n + 1) * 64 / 2**30
+    return (f"{duration_s:g} s in steps of dt_s {dt_s:g} s is {n:.3g} physics steps ({gib:.3g} GiB of trajectory); "
+            f"at most {MAX_STEPS} steps: {what} <= {MAX_STEPS * dt_s:g} s at this dt_s")
+
+
+def _room_for_circles(rd: _Reader, world: World, n: float, path: Path_, what: str) -> None:
+    """Refuse ``n`` more obstacle circles (``what`` says where they come from) when the world would then hold
+    more than :data:`MAX_CIRCLES`; called before they are made."""
+    have = len(world.circles)
+    if have + n > MAX_CIRCLES:
+        raise rd.error(path, f"{what} would make {n:.3g} obstacle circles{f' more than the {have} before' if have else ''}; "
+                             f"at most {MAX_CIRCLES} in a scenario")
+
+
 def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     """Parse and validate a scenario from TOML text; raises ScenarioError."""
     try:
@@ -365,6 +397,9 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     control_hz = rd.num(sc, "control_hz", sp, 15.0, lo=0.0, lo_open=True)
     if control_hz * dt > 1.0 + 1e-9:  # the controller runs at most once per physics step
         raise rd.error((*sp, "control_hz"), f"must be <= 1 / dt_s = {1.0 / dt:g}, got {control_hz:g}")
+    too_long = run_length_problem(duration, dt)
+    if too_long:  # blame the step when it was set below the default, else the duration
+        raise rd.error((*sp, "dt_s" if "dt_s" in sc and dt < 0.02 else "duration_s"), too_long)
     wrng = np.random.default_rng(rd.integer(sc, "world_seed", sp, 0))
 
     kind, params, start, vmax = _robot(rd, data)
@@ -420,10 +455,16 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                     or gp[0] > gp[1]):
                 raise rd.error((*p, "gaps", j), f"must be [start_m, end_m] along the row with start <= end, got {gp!r}")
             gaps.append((float(gp[0]), float(gp[1])))
+        plant_spacing = rd.num(r, "plant_spacing_m", p, 0.15, lo=0.0, lo_open=True)
+        cluster = rd.integer(r, "cluster", p, 3, lo=1)
+        length = polyline_length_m(base)
+        _room_for_circles(rd, world, (length // plant_spacing + 1) * cluster * count,
+                          (*p, "plant_spacing_m" if "plant_spacing_m" in r else "count"),
+                          f"{length:.4g} m of row every {plant_spacing:g} m x cluster {cluster} x count {count}")
         for k in range(count):
-            world.add_circles(plants_along(base + k * spacing * normal, rd.num(r, "plant_spacing_m", p, 0.15, lo=0.0, lo_open=True),
+            world.add_circles(plants_along(base + k * spacing * normal, plant_spacing,
                                            rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
-                                           rd.integer(r, "cluster", p, 3, lo=1), rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps))
+                                           cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps))
     for i, w in enumerate(rd.tables(data, "weeds")):
         p = ("weeds", i)
         rd.keys(w, p, {"region", "count", "radius_m"})
@@ -432,6 +473,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
             raise rd.error((*p, "region"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m], finite numbers with min < max, "
                                            f"got {reg!r}")
         n = rd.integer(w, "count", p, 10)
+        _room_for_circles(rd, world, n, (*p, "count"), "this many weeds")
         rad = rd.num(w, "radius_m", p, 0.02, lo=0.0, lo_open=True)
         xy = wrng.uniform((reg[0], reg[1]), (reg[2], reg[3]), (n, 2))
         world.add_circles(np.column_stack((xy, np.full(n, rad))))
