@@ -12,7 +12,6 @@
 #define SETPOINT_STEER_LIMIT_CDEG 18000 /* beyond +-180 deg or +-10 m/s a setpoint is garbage */
 #define SETPOINT_SPEED_LIMIT_MM_S 10000
 #define RAW_PWM_LIMIT 3000u             /* CALIB_PWM_MAX */
-#define GOAL_LIMIT_M 10000.0f           /* +-10 km keeps x_mm inside int32 with margin */
 #define REFUSAL_TEXT_GAP_MS 1000u
 #define PARAM_SEND_PER_POLL 2u /* paced so a PARAM list does not flood a 57600 link */
 
@@ -48,10 +47,78 @@ static void count(uint16_t *c)
     }
 }
 
-static bool is_finite_f(float f)
+/* The received floats are checked and converted on their IEEE-754 bits with integer operations
+ * only: the AVR then links none of the float compare, add and float-to-integer routines. Each
+ * test is exactly the float expression it stands for (every one of the 2^32 bit patterns was
+ * compared on the host, and samples with all rounding ties on the AVR's float library). */
+#define FB_MAG(b) ((b) & 0x7FFFFFFFul) /* |f|: the order of the bits is the order of the values */
+#define FB_ONE 0x3F800000ul           /* 1.0f */
+#define FB_3_4E38 0x7F7FC99Eul        /* 3.4e38f */
+#define FB_2P24 0x4B800000ul          /* 16777216.0f */
+#define FB_10000 0x461C4000ul         /* 10000.0f = GOAL_LIMIT_M */
+
+static uint32_t fbits(float f)
 {
-    /* NaN compares false with everything; +-inf lies beyond FLT_MAX. */
-    return f == f && f <= 3.4e38f && f >= -3.4e38f;
+    uint32_t b;
+    memcpy(&b, &f, sizeof b);
+    return b;
+}
+
+/* f == f && f <= 3.4e38f && f >= -3.4e38f: NaN and +-inf lie above 3.4e38f's bits */
+static bool is_finite_f(float f) { return FB_MAG(fbits(f)) <= FB_3_4E38; }
+
+/* f == 1.0f */
+static bool is_one(float f) { return fbits(f) == FB_ONE; }
+
+/* f == 0.0f (either zero) */
+static bool is_zero(float f) { return (fbits(f) << 1) == 0u; }
+
+/* q * 2^e rounded to float precision (24 bits, to nearest, ties to even), then truncated
+ * towards zero: what a float operation whose exact result is q * 2^e, cast to an integer, gives. */
+static uint32_t trunc_rne24(uint32_t q, int16_t e)
+{
+    bool half = false, sticky = false; /* the first bit shifted out; any bit after it */
+    for (; q >= 0x1000000ul; e++) {
+        sticky = sticky || half;
+        half = (q & 1u) != 0u;
+        q >>= 1;
+    }
+    if (half && (sticky || (q & 1u) != 0u)) {
+        q++;
+    }
+    for (; e < 0 && q != 0u; e++) {
+        q >>= 1;
+    }
+    for (; e > 0; e--) {
+        q <<= 1;
+    }
+    return q;
+}
+
+static int32_t with_sign(uint32_t b, uint32_t v) { return (b & 0x80000000ul) != 0u ? -(int32_t)v : (int32_t)v; }
+
+/* (int32_t)(f >= 0.0f ? f + 0.5f : f - 0.5f) for |f| < 2^24. |f| = m 2^(ex-150) and 0.5 =
+ * 2^(150-ex) 2^(ex-151), so the exact sum is (2m + 2^(150-ex)) 2^(ex-151); below 0.25 it is 0. */
+static int32_t round_half_away(float f)
+{
+    uint32_t b = fbits(f);
+    uint8_t ex = (uint8_t)(b >> 23);
+    uint32_t v = 0u;
+    if (ex >= 125u) {
+        uint32_t m = (b & 0x7FFFFFul) | 0x800000ul;
+        v = trunc_rne24((m << 1) + (1ul << (150u - ex)), (int16_t)(ex - 151));
+    }
+    return with_sign(b, v);
+}
+
+/* (int32_t)(f * 1000.0f) for |f| <= 10000: with |f| = m 2^(ex-150) the exact product is
+ * 125 m 2^(ex-147), 125 m < 2^31 (a subnormal f, read as a tiny normal one, gives 0 either way). */
+static int32_t times_1000(float f)
+{
+    uint32_t b = fbits(f);
+    uint8_t ex = (uint8_t)(b >> 23);
+    uint32_t m = (b & 0x7FFFFFul) | 0x800000ul;
+    return with_sign(b, trunc_rne24(m * 125u, (int16_t)(ex - 147)));
 }
 
 /* A refused non-command message: counted, one STATUSTEXT per REFUSAL_TEXT_GAP_MS at most. */
@@ -173,7 +240,7 @@ static bool for_robot(uint8_t target_system, uint8_t target_component, uint32_t 
 }
 
 /* 0 or 1 exactly (flags and switches). */
-static bool is_bool(float f) { return f == 0.0f || f == 1.0f; }
+static bool is_bool(float f) { return is_zero(f) || is_one(f); }
 
 /* LINK_REFUSAL_* of params p[0..n-1] that must each be 0 or 1; 0 when fine. */
 static uint8_t check_bools(const float *p, uint8_t n)
@@ -209,7 +276,7 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
     case MAV_CMD_AGNAV_ESTOP:
         reason = check_bools(p, 1u);
         if (reason == 0u) {
-            s_state.estop = c.param1 == 1.0f;
+            s_state.estop = is_one(c.param1);
         }
         break;
     case MAV_CMD_COMPONENT_ARM_DISARM:
@@ -218,7 +285,7 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
         if (reason != 0u) {
             break;
         }
-        if (c.param1 == 1.0f) {
+        if (is_one(c.param1)) {
             s_state.arm_request = true;
         } else {
             s_state.setpoint.valid = false;
@@ -228,9 +295,9 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
     case MAV_CMD_AGNAV_SET_BEHAVIOURS:
         reason = check_bools(p, 3u);
         if (reason == 0u) {
-            s_state.behaviour_enable = (uint8_t)((c.param1 == 1.0f ? LINK_ENABLE_FOLLOW_WALL : 0u) |
-                                                 (c.param2 == 1.0f ? LINK_ENABLE_GOAL_SEEK : 0u) |
-                                                 (c.param3 == 1.0f ? LINK_ENABLE_AVOID : 0u));
+            s_state.behaviour_enable = (uint8_t)((is_one(c.param1) ? LINK_ENABLE_FOLLOW_WALL : 0u) |
+                                                 (is_one(c.param2) ? LINK_ENABLE_GOAL_SEEK : 0u) |
+                                                 (is_one(c.param3) ? LINK_ENABLE_AVOID : 0u));
         }
         break;
     case MAV_CMD_PREFLIGHT_STORAGE:
@@ -238,9 +305,9 @@ static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
          * DRIVE_KIND take effect at the next boot). Other param1 values: unsupported. */
         if (!is_finite_f(c.param1)) {
             reason = LINK_REFUSAL_NOT_FINITE;
-        } else if (c.param1 == 1.0f) {
+        } else if (is_one(c.param1)) {
             result = params_save(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
-        } else if (c.param1 == 0.0f) {
+        } else if (is_zero(c.param1)) {
             result = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
         } else {
             result = MAV_RESULT_UNSUPPORTED;
@@ -299,8 +366,8 @@ static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
         return;
     }
     /* Outside +-2^24 a float no longer holds every integer and the int32 cast could overflow. */
-    bool ok = is_finite_f(ps.param_value) && ps.param_value > -16777216.0f && ps.param_value < 16777216.0f;
-    int32_t v = ok ? (int32_t)(ps.param_value >= 0.0f ? ps.param_value + 0.5f : ps.param_value - 0.5f) : 0;
+    bool ok = FB_MAG(fbits(ps.param_value)) < FB_2P24; /* finite, > -16777216.0f and < 16777216.0f */
+    int32_t v = ok ? round_half_away(ps.param_value) : 0;
     if (!ok || params_set((uint16_t)idx, v) != PARAMS_OK) {
         count(&s_state.rx_refused);
         if (ok) {
@@ -410,14 +477,15 @@ static void handle(const mavlink_message_t *m, uint32_t now_ms)
             break;
         }
         /* Position only, in the local frame: x and y must be used (type_mask bits 0, 1 clear). */
-        if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || !is_finite_f(t.x) ||
-            !is_finite_f(t.y) || t.x > GOAL_LIMIT_M || t.x < -GOAL_LIMIT_M || t.y > GOAL_LIMIT_M || t.y < -GOAL_LIMIT_M) {
+        /* |x|, |y| <= GOAL_LIMIT_M, which also rules out NaN and +-inf */
+        if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || FB_MAG(fbits(t.x)) > FB_10000 ||
+            FB_MAG(fbits(t.y)) > FB_10000) {
             s_state.goal.active = false;
             refuse(LINK_TEXT("refused GOAL: frame/mask/NaN/10 km, dropped"), now_ms);
             break;
         }
-        s_state.goal.x_mm = (int32_t)(t.x * 1000.0f);
-        s_state.goal.y_mm = (int32_t)(-t.y * 1000.0f);
+        s_state.goal.x_mm = times_1000(t.x);  /* (int32_t)(t.x * 1000.0f) */
+        s_state.goal.y_mm = -times_1000(t.y); /* (int32_t)(-t.y * 1000.0f) */
         s_state.goal.active = true;
         break;
     }

@@ -250,6 +250,44 @@ static void test_link_param_set_broadcast_is_refused(void)
     TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
 }
 
+/* PARAM_SET rounds half away from zero in float arithmetic, ties to even included (8388609.0f + 0.5f
+ * is 8388610.0f): the firmware now works on the bits and must give the same integers. */
+static void test_link_param_set_rounds_as_the_float_expression(void)
+{
+    static int32_t s_wide;
+    static const PARAMS_ROM param_def_t WIDE[] = {{"WIDE", PARAM_I32, &s_wide, -16777216, 16777216}};
+    static const float V[] = {0.49999997f, 0.5f, 1.5f, 2.5f, -0.5f, -2.5f, 0.25f, 0.24999999f, 1e-30f, -0.0f,
+                              1234.4999f, -1234.5f, 8388607.5f, 8388609.0f, 8388611.0f, -8388609.0f, 16777215.0f,
+                              -16777215.0f, 4194304.5f, 0.75f};
+    static const char ID[16] = "WIDE"; /* the pack copies all 16 bytes */
+    params_init(WIDE, 1u);
+    for (uint8_t i = 0; i < sizeof V / sizeof V[0]; i++) {
+        volatile float f = V[i];
+        int32_t want = (int32_t)(f >= 0.0f ? f + 0.5f : f - 0.5f);
+        s_wide = 12345;
+        mavlink_msg_param_set_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, ID, f, MAV_PARAM_TYPE_INT32);
+        send_to_robot(&s_msg);
+        TEST_ASSERT_EQUAL_INT32(want, s_wide);
+    }
+    TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_refused);
+}
+
+/* Goal metres to millimetres as (int32_t)(x * 1000.0f) truncates a float product (also done on bits). */
+static void test_link_goal_millimetres_are_the_truncated_float_product(void)
+{
+    static const float V[] = {0.0015f, -0.0015f, 0.001f, 0.003f, 2.0000002f, 9999.9995f, -10000.0f, 10000.0f,
+                              1e-10f, 0.0f, -0.0f, 0.000999f, 123.4567f, -7.0625f, 1e-40f};
+    for (uint8_t i = 0; i < sizeof V / sizeof V[0]; i++) {
+        volatile float x = V[i], y = V[(i + 3u) % (sizeof V / sizeof V[0])];
+        goal(MAV_FRAME_LOCAL_NED, 0u, x, y);
+        TEST_ASSERT_TRUE(link_state()->goal.active);
+        TEST_ASSERT_EQUAL_INT32((int32_t)(x * 1000.0f), link_state()->goal.x_mm);
+        TEST_ASSERT_EQUAL_INT32((int32_t)(-y * 1000.0f), link_state()->goal.y_mm);
+    }
+    goal(MAV_FRAME_LOCAL_NED, 0u, 10000.001f, 0.0f);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->goal.active, "just beyond 10 km");
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -274,5 +312,7 @@ int main(void)
     RUN_TEST(test_link_goal_nan_far_wrong_frame_or_ignored_xy_is_refused);
     RUN_TEST(test_link_param_set_nan_or_huge_is_refused);
     RUN_TEST(test_link_param_set_broadcast_is_refused);
+    RUN_TEST(test_link_param_set_rounds_as_the_float_expression);
+    RUN_TEST(test_link_goal_millimetres_are_the_truncated_float_product);
     return UNITY_END();
 }
