@@ -251,6 +251,13 @@ static void ack_substep(int32_t ds_um, uint32_t kappa_mag_q16, bool left)
 
 /* ---- public ------------------------------------------------------------- */
 
+/* (n + d / 2) / d, rounded, for a 64-bit n (init time). Not inlined: on the AVR the 64-bit
+ * arithmetic written out at each call costs flash. */
+__attribute__((noinline)) static uint32_t div_round_u64(uint64_t n, uint32_t d)
+{
+    return (uint32_t)((n + d / 2u) / d);
+}
+
 bool odom_init(const odom_cfg_t *cfg)
 {
     uint16_t track_mm = ODOM_DEFAULT_TRACK_MM;
@@ -280,10 +287,9 @@ bool odom_init(const odom_cfg_t *cfg)
     s_odom.half_um = 0u;
     s_odom.speed_mm_s = 0;
     s_odom.yaw_rate_cdeg_s = 0;
-    /* Init-time 64-bit divisions, rounded. */
-    s_odom.k_yaw_diff = (uint32_t)((BAM_PER_RAD_Q16 + (uint64_t)track_mm * 500u) / ((uint64_t)track_mm * 1000u));
-    s_odom.k_yaw_ack = (uint32_t)((BAM_PER_RAD_Q16 + (uint64_t)wheelbase_mm * 500u) /
-                                  ((uint64_t)wheelbase_mm * 1000u));
+    /* Init-time 64-bit divisions, rounded (the mm * 1000 divisors fit 32 bits). */
+    s_odom.k_yaw_diff = div_round_u64(BAM_PER_RAD_Q16, (uint32_t)track_mm * 1000u);
+    s_odom.k_yaw_ack = div_round_u64(BAM_PER_RAD_Q16, (uint32_t)wheelbase_mm * 1000u);
     s_odom.k_rate_diff = (CDEG_PER_RAD_Q16 + track_mm / 2u) / track_mm;
     s_odom.k_rate_ack = (CDEG_PER_RAD_Q16 + wheelbase_mm / 2u) / wheelbase_mm;
     return ok;

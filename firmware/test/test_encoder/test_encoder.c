@@ -333,6 +333,37 @@ static void test_encoder_update_distance_keeps_sub_micrometre_fraction(void)
 
 /* ---- snapshot and health ------------------------------------------------ */
 
+/* Reference travel of the wide case (|dc| >= 2^15 or >= 256 mm per count): the 64-bit formula
+ * the firmware had before it was done in 32-bit halves. */
+static int32_t ref_travel_um(int32_t dc, uint32_t nm, uint8_t *resid)
+{
+    uint32_t um_q8 = (uint32_t)(((uint64_t)nm * 256u + 500u) / 1000u);
+    int64_t acc = (int64_t)dc * (int64_t)um_q8 + (int64_t)*resid;
+    *resid = (uint8_t)(acc & 0xFF);
+    acc >>= 8;
+    return acc > INT32_MAX ? INT32_MAX : acc < INT32_MIN ? INT32_MIN : (int32_t)acc;
+}
+
+static void test_encoder_update_wide_travel_matches_the_64_bit_formula(void)
+{
+    /* 3.999999997 m per count: every update takes the wide path; 600 counts (2.4 km) saturate at
+     * INT32_MAX, 530 back (2.12 km) just do not */
+    static const int16_t BURSTS[] = {3, -5, 1, 0, -1, 7, 600, -530, 2, -2};
+    const uint32_t nm = 3999999997u;
+    encoder_cfg_t c = quad_cfg(0);
+    c.travel_per_count_nm = nm;
+    TEST_ASSERT_TRUE(encoder_init(1, &c));
+    uint8_t resid = 0u;
+    for (uint8_t i = 0; i < sizeof BURSTS / sizeof BURSTS[0]; i++) {
+        encoder_motion_t m;
+        quad_steps(0, BURSTS[i], 10u);
+        sim_time_advance_us(20000u);
+        encoder_update(hal_time_us());
+        encoder_motion(0, &m);
+        TEST_ASSERT_EQUAL_INT32(ref_travel_um(BURSTS[i], nm, &resid), m.delta_um);
+    }
+}
+
 static void test_encoder_snapshot_copies_record_and_restores_irq_state(void)
 {
     encoder_snapshot_t s;
@@ -498,6 +529,7 @@ int main(void)
     RUN_TEST(test_encoder_update_count_method_at_40khz_edges);
     RUN_TEST(test_encoder_update_uses_period_below_crossover_and_count_above);
     RUN_TEST(test_encoder_update_distance_keeps_sub_micrometre_fraction);
+    RUN_TEST(test_encoder_update_wide_travel_matches_the_64_bit_formula);
     RUN_TEST(test_encoder_snapshot_copies_record_and_restores_irq_state);
     RUN_TEST(test_encoder_update_sets_fault_on_high_error_ratio_and_clears);
     RUN_TEST(test_encoder_update_tolerates_rare_errors);
