@@ -184,3 +184,47 @@ def test_run_scenario_refuses_a_run_beyond_the_step_limit():
 
     with pytest.raises(ValueError, match="at most 2000000 steps"):
         run_scenario(load_scenario("canyon"), duration_s=1e9)
+
+
+# ---- A7: faults --markdown checked before the cases run --------------------------------------------------
+@pytest.fixture
+def no_fault_run(monkeypatch):
+    """agnav faults without running any case: records the calls, returns no rows."""
+    import agnav_host.faults as faults
+
+    calls: list[int] = []
+    monkeypatch.setattr(faults, "run_cases", lambda cases, progress=None: calls.append(1) or [])
+    return calls
+
+
+def test_faults_markdown_that_cannot_be_written_is_refused_before_the_cases(tmp_path, capsys, no_fault_run):
+    (tmp_path / "afile").write_text("x")
+    for bad, why in ((f"{UNWRITABLE_DIR}/faults.md", "does not take new files"), (str(tmp_path), "it is a directory"),
+                     (str(tmp_path / "afile" / "x.md"), "is not a directory")):
+        assert cli.main(["faults", "--only", "corrupt scenario", "--quiet", "--markdown", bad]) == 2
+        cap = capsys.readouterr()
+        assert cap.err.strip().startswith(f"agnav faults: --markdown {bad}: cannot write there:") and why in cap.err
+        assert len(cap.err.strip().splitlines()) == 1 and cap.out == ""
+    assert not no_fault_run
+    ok = tmp_path / "new" / "faults.md"
+    assert cli.main(["faults", "--only", "corrupt scenario", "--quiet", "--markdown", str(ok)]) == 0
+    assert no_fault_run and ok.is_file()
+
+
+def test_faults_markdown_failing_after_the_run_is_one_line(tmp_path, capsys, monkeypatch, no_fault_run):
+    def full(self, *a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", full)
+    assert cli.main(["faults", "--only", "corrupt scenario", "--quiet", "--markdown", str(tmp_path / "f.md")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"agnav faults: --markdown {tmp_path / 'f.md'}: could not write the table (printed above): " \
+                  "No space left on device"
+
+
+def test_fault_suite_sends_a_scenario_that_is_really_not_utf8():
+    from agnav_host.faults.host_faults import _case_corrupt_scenarios
+
+    out = _case_corrupt_scenarios()
+    assert out.passed, out.measured
+    assert "not UTF-8 (Latin-1): exit 2" in out.measured and "cannot read scenario file: not UTF-8" in out.measured

@@ -24,7 +24,8 @@ def _progress(i: int, n: int, name: str) -> None:
         (("--only",), {"action": "append", "default": [], "metavar": "TEXT",
                        "help": "run the cases whose area or name contains TEXT (repeatable)"}),
         (("--list",), {"action": "store_true", "help": "list the cases and exit"}),
-        (("--markdown",), {"default": None, "metavar": "FILE", "help": "also write the table as markdown"}),
+        (("--markdown",), {"default": None, "metavar": "FILE",
+                            "help": "also write the table as markdown (checked writable before the cases run)"}),
         (("--quiet",), {"action": "store_true", "help": "no progress bar"}),
     ],
 )
@@ -42,10 +43,22 @@ def _cmd_faults(ns: argparse.Namespace) -> int:
         for c in cases:
             print(f"{c.area:10s} {c.name}")
         return 0
+    if ns.markdown:  # before the cases run (minutes for the whole suite), not after
+        from ..link.commands import _unwritable_reason
+
+        why = _unwritable_reason(Path(ns.markdown))
+        if why:
+            print(f"agnav faults: --markdown {ns.markdown}: cannot write there: {why}", file=sys.stderr)
+            return 2
     rows = run_cases(cases, None if ns.quiet else _progress)
     print(format_table(rows, markdown=False))
     if ns.markdown:
-        Path(ns.markdown).parent.mkdir(parents=True, exist_ok=True)
-        Path(ns.markdown).write_text(format_table(rows, markdown=True) + "\n", encoding="utf-8")
+        try:
+            Path(ns.markdown).parent.mkdir(parents=True, exist_ok=True)
+            Path(ns.markdown).write_text(format_table(rows, markdown=True) + "\n", encoding="utf-8")
+        except OSError as e:  # disk full, or the folder changed during the run: the table is printed above
+            print(f"agnav faults: --markdown {ns.markdown}: could not write the table (printed above): "
+                  f"{e.strerror or e}", file=sys.stderr)
+            return 1
         print(f"wrote {ns.markdown}")
     return 0 if all(r.outcome.passed for r in rows) else 1

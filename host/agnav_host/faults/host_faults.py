@@ -73,6 +73,7 @@ def _clean_error(p: subprocess.CompletedProcess) -> tuple[bool, str]:
 _BAD_SCENARIOS = {
     "TOML syntax error": ("[scenario]\nname = \"x\"\n[robot\nmodel = \"diff_drive\"\n", "syntax"),
     "binary garbage": ("\x00\x17\xff garbage \x01\n" * 4, "syntax"),
+    "not UTF-8 (Latin-1)": ("[scenario]\nname = \"caf\udce9\"\n", "not UTF-8"),  # \udce9: byte 0xe9 as written
     "NaN start pose": ("[scenario]\nname = \"x\"\n[robot]\nmodel = \"diff_drive\"\n"
                        "start = { x_m = nan, y_m = 0.0, yaw_deg = 0.0 }\n[[goals]]\nx_m = 1.0\ny_m = 0.0\n", "x_m"),
     "unknown robot model": ("[scenario]\nname = \"x\"\n[robot]\nmodel = \"hovercraft\"\n[[goals]]\nx_m = 1.0\ny_m = 0.0\n",
