@@ -274,7 +274,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         except ValueError as e:
             print(f"agnav sim: {e}", file=sys.stderr)
             return 2
-    bad_out = unusable_out_dir(ns.out)
+    bad_out = unusable_out_dir(ns.out) or _clear_sim_outputs(ns.out, ns.quiet)
     if bad_out:
         print(f"agnav sim: --out {ns.out}: {bad_out}", file=sys.stderr)
         return 2
@@ -308,7 +308,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     try:
         paths = write()
         if not getattr(ns, "no_rrd", False):
-            paths += _sim_recordings(sc, result, ns.out)
+            paths += _sim_recordings(sc, result, ns.out, with_link=ns.firmware in ("sil", "avr"))
     except (OSError, RuntimeError) as e:  # disk full, output folder not writable, recorder died
         return _report_write_failure("sim", ns.out, e)
     m = result.metrics
@@ -316,6 +316,28 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+#: Every file `agnav sim` may write into its --out folder (ideal and firmware-in-the-loop runs, plots and
+#: recordings): those of an earlier run are removed before a run, so that a folder never mixes two runs.
+SIM_OUTPUTS = ("summary.json", "run_info.json", "trajectory.csv", "trajectory.png", "recording.rrd",
+               "link.tlog", "firmware.csv", "link.rrd")
+
+
+def _clear_sim_outputs(out: str, quiet: bool) -> str | None:
+    """Remove the :data:`SIM_OUTPUTS` an earlier run left in ``out`` (other files are left alone); why
+    that failed, or None. Said on stderr unless ``quiet``."""
+    from pathlib import Path
+
+    old = [Path(out) / n for n in SIM_OUTPUTS if (Path(out) / n).is_file() or (Path(out) / n).is_symlink()]
+    for p in old:
+        try:
+            p.unlink()
+        except OSError as e:
+            return f"cannot remove {p.name} of an earlier run: {e.strerror or e}"
+    if old and not quiet:
+        print(f"agnav sim: --out {out}: removed the earlier run's {', '.join(p.name for p in old)}", file=sys.stderr)
+    return None
 
 
 def _missing_sensor(sc: Any, planner: str) -> str | None:
@@ -381,9 +403,10 @@ def _report_write_failure(cmd: str, out: str, err: BaseException) -> int:
     return 1
 
 
-def _sim_recordings(sc: Any, result: Any, out: str) -> list:
-    """recording.rrd (true pose and path, goals, walls) and, for firmware-in-the-loop runs, link.rrd
-    (what the robot reported over the radio: odometry, sonar, behaviour layer) for `rerun`."""
+def _sim_recordings(sc: Any, result: Any, out: str, with_link: bool) -> list:
+    """recording.rrd (true pose and path, goals, walls) and, for firmware-in-the-loop runs (``with_link``:
+    this run wrote link.tlog), link.rrd (what the robot reported over the radio: odometry, sonar, behaviour
+    layer) for `rerun`."""
     from pathlib import Path
 
     from .viz.recorder import VizUnavailable, record_run, record_tlog
@@ -393,7 +416,7 @@ def _sim_recordings(sc: Any, result: Any, out: str) -> list:
         goals = [(g.x_m, g.y_m) for g in getattr(sc, "goals", [])]
         segs = getattr(getattr(sc, "world", None), "segments", None)
         written = [record_run(result.trajectory, goals, out_dir / "recording.rrd", world_segments=segs)]
-        if (out_dir / "link.tlog").is_file():
+        if with_link:
             written.append(record_tlog(out_dir / "link.tlog", out_dir / "link.rrd"))
         return written
     except VizUnavailable as e:

@@ -228,3 +228,29 @@ def test_fault_suite_sends_a_scenario_that_is_really_not_utf8():
     out = _case_corrupt_scenarios()
     assert out.passed, out.measured
     assert "not UTF-8 (Latin-1): exit 2" in out.measured and "cannot read scenario file: not UTF-8" in out.measured
+
+
+# ---- A8: sim --out reused: the earlier run's files go, link.rrd only from this run's link.tlog ---------------
+def test_sim_out_reused_removes_the_earlier_runs_files(tmp_path, capsys):
+    out = tmp_path / "mix"
+    out.mkdir()
+    for name in ("summary.json", "run_info.json", "trajectory.csv", "trajectory.png", "recording.rrd", "link.tlog",
+                 "firmware.csv", "link.rrd"):  # as a firmware-in-the-loop run of another scenario left them
+        (out / name).write_text("stale")
+    (out / "notes.txt").write_text("mine")
+    assert cli.main(["sim", "canyon", "--duration", "1", "--no-plot", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    for name in ("link.tlog", "firmware.csv", "link.rrd", "trajectory.png"):  # not written by an ideal --no-plot run
+        assert not (out / name).exists(), name
+    assert (out / "notes.txt").read_text() == "mine"  # not a file sim writes: left alone
+    assert "canyon" in (out / "run_info.json").read_text()
+    assert "link.rrd" not in cap.out
+    assert f"agnav sim: --out {out}: removed the earlier run's summary.json" in cap.err
+
+
+def test_sim_firmware_in_the_loop_still_records_its_own_link_tlog(tmp_path, capsys):
+    pytest.importorskip("rerun")
+    out = tmp_path / "sil"
+    assert cli.main(["sim", "--firmware", "sil", "--duration", "1", "--quiet", "--no-plot", "--out", str(out)]) == 0
+    assert f"wrote {out / 'link.rrd'}" in capsys.readouterr().out
+    assert (out / "link.tlog").stat().st_size > 0 and (out / "link.rrd").stat().st_size > 0
