@@ -14,12 +14,16 @@ a range of NaN, inf or 0 means no return (``nan``/``inf`` are written as such). 
 ``range_min_m``, if given) must be > 0 with ``range_min_m < range_max_m``. A UTF-8 byte-order mark
 (files saved by Excel) is accepted. The pose line gives the sensor pose in the world frame and is
 optional (its keys may appear in any order; all four pose keys or none). A comment line that names none of
-these keys is free text and ignored (``# operator=Anna`` too).
+these keys is free text and ignored (``# operator=Anna`` too). On a metadata line every key must be one of
+them; a comment with a near miss of one (``# range_mx_m=1.0``, ``# range_max=1.0``) or one written with a colon
+(``# range_max_m: 1.0``) is refused too, so a misspelt limit is not silently lost.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +40,30 @@ _ANGLE_LIMIT_RAD = 2.0 * math.pi  # beyond this (or a wider span) the angles are
 
 class ScanFileError(ValueError):
     """A scan file could not be read; the message names the file and line."""
+
+
+_COMMENT_KEY = re.compile(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*[=:]")
+
+
+def _unknown_key_text(key: str) -> str:
+    close = difflib.get_close_matches(key, sorted(_META_KEYS), n=1, cutoff=0.8)
+    hint = f"did you mean {close[0]}? " if close else ""
+    return f"unknown metadata key {key!r}; {hint}known: {', '.join(sorted(_META_KEYS))}"
+
+
+def _misspelt_meta(body: str) -> str | None:
+    """Why a comment that names no metadata key still reads as a metadata line gone wrong (an item ``key=`` or
+    ``key:`` whose key is a near miss of a known one, or a known one with a colon), or None for free text."""
+    for item in body.split(","):
+        m = _COMMENT_KEY.match(item)
+        if not m:
+            continue
+        key = m.group(1)
+        if key in _META_KEYS:
+            return f"metadata is written key=value ({key}=...), got {item.strip()!r}"
+        if difflib.get_close_matches(key, _META_KEYS, n=1, cutoff=0.8):
+            return _unknown_key_text(key)
+    return None
 
 
 def save_scan_csv(scan: LaserScan, path: str | Path) -> Path:
@@ -98,11 +126,17 @@ def load_scan_csv(path: str | Path) -> LaserScan:
                     if "=" not in item:
                         raise ScanFileError(f"{p}:{n}: bad metadata item {item.strip()!r} (expected key=value)")
                     k, v = (s.strip() for s in item.split("=", 1))
+                    if k not in _META_KEYS:
+                        raise ScanFileError(f"{p}:{n}: {_unknown_key_text(k)}")
                     try:
                         meta[k] = float(v)
                         meta_line[k] = n
                     except ValueError:
                         raise ScanFileError(f"{p}:{n}: metadata {k} is not a number: {v!r}") from None
+            else:
+                why = _misspelt_meta(body)
+                if why:
+                    raise ScanFileError(f"{p}:{n}: {why}")
             continue
         if not header_seen:
             if line.replace(" ", "") != HEADER:

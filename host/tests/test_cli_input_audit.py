@@ -254,3 +254,35 @@ def test_sim_firmware_in_the_loop_still_records_its_own_link_tlog(tmp_path, caps
     assert cli.main(["sim", "--firmware", "sil", "--duration", "1", "--quiet", "--no-plot", "--out", str(out)]) == 0
     assert f"wrote {out / 'link.rrd'}" in capsys.readouterr().out
     assert (out / "link.tlog").stat().st_size > 0 and (out / "link.rrd").stat().st_size > 0
+
+
+# ---- A9: rows: a misspelt key on a scan's metadata line ---------------------------------------------------
+def _scan(path: Path, meta: str) -> Path:
+    n = 271
+    lines = ["# agnav-scan v1", meta, "angle_rad,range_m"]
+    lines += [f"{-2.35 + 4.7 * i / (n - 1)!r},1.5" for i in range(n)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("meta, why", [
+    ("# stamp_s=1.0,range_mx_m=1.0", "unknown metadata key 'range_mx_m'; did you mean range_max_m? known: pose_x_m,"),
+    ("# stamp_s=1.0,operator=Anna", "unknown metadata key 'operator'; known: pose_x_m, pose_y_m, pose_yaw_rad, "
+                                    "range_max_m, range_min_m, stamp_s"),
+    ("# range_max=1.0", "unknown metadata key 'range_max'; did you mean range_max_m?"),
+    ("# range_max_m: 1.0", "metadata is written key=value (range_max_m=...), got 'range_max_m: 1.0'"),
+])
+def test_rows_refuses_an_unknown_or_misspelt_metadata_key_naming_the_line(tmp_path, capsys, meta, why):
+    f = _scan(tmp_path / "s.csv", meta)
+    assert cli.main(["rows", "--scan", str(f)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"agnav rows: {f}:2: {why}" or err.startswith(f"agnav rows: {f}:2: {why}"), err
+
+
+def test_rows_free_text_comments_and_good_metadata_still_read(tmp_path, capsys):
+    from agnav_host.scanio import load_scan_csv
+
+    assert load_scan_csv(_scan(tmp_path / "a.csv", "# operator=Anna, left row")).range_max_m == float("inf")
+    assert load_scan_csv(_scan(tmp_path / "b.csv", "# stamp_s=1.0,range_max_m=1.0")).range_max_m == 1.0
+    assert cli.main(["rows", "--scan", str(tmp_path / "b.csv")]) == 3  # nothing within the 1 m limit
+    assert "in 0.05..1 m" in capsys.readouterr().err
