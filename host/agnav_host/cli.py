@@ -192,13 +192,37 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit code when the reader of our output went away (``agnav planners | head -1``): what a process killed by
+#: SIGPIPE reports to the shell, 128 + 13.
+EXIT_BROKEN_PIPE = 141
+
+
+def _quiet_broken_pipe() -> int:
+    """The reader of stdout (or stderr) is gone: point both at /dev/null so that nothing more, not even
+    Python's flush at exit, fails on them, and exit quietly as standard tools do."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        for stream in (sys.stdout, sys.stderr):
+            os.dup2(devnull, stream.fileno())
+    except (OSError, ValueError, AttributeError):  # a stream without a file descriptor (a test's capture)
+        pass
+    return EXIT_BROKEN_PIPE
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agnav`` console script; returns the exit code."""
     parser = build_parser()  # first: every subcommand's options must be known to the joiner
     args = _join_negative_values(list(sys.argv[1:] if argv is None else argv), _value_options(parser))
     ns = parser.parse_args(args)
     handler: Handler = ns._handler
-    return handler(ns)
+    try:
+        rc = handler(ns)
+        sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
+    return rc
 
 
 # ---- subcommands -------------------------------------------------------------------------------

@@ -286,3 +286,31 @@ def test_rows_free_text_comments_and_good_metadata_still_read(tmp_path, capsys):
     assert load_scan_csv(_scan(tmp_path / "b.csv", "# stamp_s=1.0,range_max_m=1.0")).range_max_m == 1.0
     assert cli.main(["rows", "--scan", str(tmp_path / "b.csv")]) == 3  # nothing within the 1 m limit
     assert "in 0.05..1 m" in capsys.readouterr().err
+
+
+# ---- A11: output piped into a reader that stops early (`| head -1`) -------------------------------------
+def _tlog(path: Path) -> Path:
+    from agnav_host.link.tlog import TlogWriter
+    from agnav_host.protocol import dialect
+
+    d = dialect()
+    robot = d.MAVLink(None, srcSystem=1, srcComponent=1)
+    with TlogWriter(path) as w:
+        for i in range(11):
+            w.write(robot.heartbeat_encode(d.MAV_TYPE_GROUND_ROVER, 0, 0, 0, 4).pack(robot), 1.7e9 + 0.1 * i)
+    return path
+
+
+@pytest.mark.parametrize("argv", [["scenarios"], ["planners"], ["plan", "--start", "0,0,0", "--goal", "3,5,90",
+                                                                 "--samples", "2000"], ["replay", "TLOG"]])
+def test_a_closed_output_pipe_ends_the_command_quietly(tmp_path, argv):
+    import subprocess
+    import sys
+
+    argv = [str(_tlog(tmp_path / "r.tlog")) if a == "TLOG" else a for a in argv]
+    p = subprocess.Popen([sys.executable, "-m", "agnav_host.cli", *argv], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    p.stdout.close()  # the reader is gone before the command writes a byte: every write meets a closed pipe
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 141  # cli.EXIT_BROKEN_PIPE: as if killed by SIGPIPE
+    assert err == "", err
