@@ -18,8 +18,9 @@ tolerance, about half a second before the car's centre reaches the goal, so on-t
 
 Prints one row per planner (arrived / timeout / collision counts, the smallest clearance) and every run
 that did not end in arrived or timeout, so it can be replayed with `agnav sim` on the printed yard. A
-contact is counted as "hit standing" when the robot was below 0.1 m/s at the first touch (a walker
-walked into it; ref 001's passive motion safety allows that), as "collision" otherwise.
+contact is counted as "hit standing" when the robot was below 0.1 m/s at the first touch and what it
+touched is a walker (the walker walked into it; ref 001's passive motion safety allows that), as
+"collision" otherwise (a car rolling to rest against a box has hit it).
 """
 
 from __future__ import annotations
@@ -128,12 +129,21 @@ def run_one(job: tuple[int, str, str, int, bool]) -> tuple[int, str, str, float,
 
     k, planner, robot, walkers, timed = job
     try:
-        r = run_scenario(parse_scenario(yard_toml(k, robot, walkers, timed), f"<yard {k}>"), planner, seed=0)
+        sc = parse_scenario(yard_toml(k, robot, walkers, timed), f"<yard {k}>")
+        r = run_scenario(sc, planner, seed=0)
         late = r.metrics.arrival_time_error_s
         end = r.end_reason
         touch = np.flatnonzero(r.trajectory[:, 6] < 0.0)
-        if end == "collision" and len(touch) and abs(r.trajectory[touch[0], 4]) < STANDING_M_S:
-            end = "hit standing"
+        if end == "collision" and len(touch) and abs(r.trajectory[touch[0], 4]) < STANDING_M_S and sc.world.movers:
+            # standing: only when what it touches is a walker (a car rolling to rest against a box hit it)
+            from agnav_host.sim.world import distance_to_objects
+
+            _t, x, y, yaw = r.trajectory[touch[0], :4]
+            p = sc.robot_params
+            off = 0.5 * p.wheelbase_m if hasattr(p, "wheelbase_m") else 0.0
+            cx, cy = np.atleast_1d(x + off * np.cos(yaw)), np.atleast_1d(y + off * np.sin(yaw))
+            if float(distance_to_objects(cx, cy, sc.world.segments, sc.world.circles)[0]) - p.radius_m > 0.0:
+                end = "hit standing"
         return k, planner, end, float(r.trajectory[:, 6].min()), float("nan") if late is None else float(late)
     except Exception as e:  # a planner that raises is a finding too
         return k, planner, f"error: {type(e).__name__}: {e}"[:160], float("nan"), float("nan")

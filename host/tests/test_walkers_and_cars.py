@@ -18,7 +18,7 @@ from agnav_host.planning.base import LocalView, RobotSpec, drive_command
 from agnav_host.planning.timed import BoundaryState, TimedLimits, TrackingParams, TrackState, plan_timed, track
 from agnav_host.sim.runner import _make_controller, run_scenario
 from agnav_host.sim.scenario import parse_scenario
-from agnav_host.types import Pose2D
+from agnav_host.types import Goal, Observation, Pose2D
 
 CAR = '''
 [robot]
@@ -288,3 +288,26 @@ radius_m = 0.49
 '''
     r, _ = _run(toml, "flb")
     assert r.end_reason != "collision" and float(r.trajectory[:, 6].min()) > 0.0
+
+
+def _rolling(speed_m_s: float, yaw_rate_rad_s: float) -> Observation:
+    return Observation(0.0, Pose2D(), speed_m_s, yaw_rate_rad_s, Goal(5.0, 0.0), None, None, {})
+
+
+def test_braking_guard_also_checks_the_arc_the_car_is_still_on():
+    # asked to drive straight while the wheels still point right (servo lag): a post on that right arc
+    post = _view((0.23, -0.22))
+    assert drive_command(CAR_SPEC, 0.6, 0.0, post).speed_m_s > 0.0  # the straight way is clear
+    assert drive_command(CAR_SPEC, 0.6, 0.0, post, _rolling(0.6, -0.9)).speed_m_s == 0.0
+    assert drive_command(CAR_SPEC, 0.6, 0.0, post, _rolling(0.6, 0.0)).speed_m_s > 0.0
+
+
+def test_a_car_told_to_stop_does_not_steer_its_roll_out_into_a_box():
+    # a planner turning "on the spot" to the right (v = 0, right yaw rate) while the car still rolls at
+    # 0.5 m/s: full right lock would carry the footprint into the box front right; straight is clear
+    box = _view((0.25, -0.22))
+    assert drive_command(CAR_SPEC, 0.0, -1.2, box).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)
+    cmd = drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.5, 0.0))
+    assert cmd.speed_m_s == 0.0 and cmd.steer_rad == pytest.approx(0.0)
+    # standing still there is no roll-out: the steering asked for is kept
+    assert drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.0, 0.0)).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)

@@ -190,7 +190,7 @@ class ApfPlanner:
             self.state = SafetyState.CLEAR
         if self.state == SafetyState.CLEAR:
             if not (front and forward):
-                return drive_command(spec, u, r, view)
+                return drive_command(spec, u, r, view, obs)
             self.state, self._t_state = SafetyState.STOP, 0.0
         if self.state == SafetyState.STOP and self._t_state >= p.stop_s and abs(obs.speed_m_s) <= 0.02:
             self.state, self._t_state, self._backed = SafetyState.BACKOFF, 0.0, 0.0
@@ -200,10 +200,10 @@ class ApfPlanner:
             if self._backed >= p.backoff_m or self._t_state >= cap:
                 self.state, self._t_state = SafetyState.WAIT, 0.0
             else:
-                return drive_command(spec, -p.backoff_speed_m_s, 0.0)
+                return drive_command(spec, -p.backoff_speed_m_s, 0.0, view, obs)
         if self.state == SafetyState.WAIT:  # turn on the spot towards the more open side (ref 001 sec. 3.4)
             if front_clr < p.d_obs_threshold_m:
                 side = 1.0 if view.sector_min(0.0, 1.2, 9.0) >= view.sector_min(-1.2, 0.0, 9.0) else -1.0
-                return drive_command(spec, 0.0, 0.5 * self.r_max * side)
-            return drive_command(spec, 0.0, r)
-        return drive_command(spec, 0.0, 0.0)
+                return drive_command(spec, 0.0, 0.5 * self.r_max * side, view, obs)
+            return drive_command(spec, 0.0, r, view, obs)
+        return drive_command(spec, 0.0, 0.0, view, obs)

@@ -142,7 +142,8 @@ def clip(v: float, lo: float, hi: float) -> float:
 BRAKE_MARGIN_M = 0.05  # the braking guard looks this far along the arc beyond the stopping distance
 
 
-def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view: "LocalView | None" = None) -> DriveCommand:
+def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view: "LocalView | None" = None,
+                  obs: Observation | None = None) -> DriveCommand:
     """A (speed, yaw rate) wish turned into the robot's command, limits applied.
 
     Differential drive: speed and yaw rate clipped. Ackermann: the yaw rate becomes the virtual
@@ -154,30 +155,57 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
     along the arc the command drives, within the stopping distance (one control period plus the drive's
     lag at the commanded speed, plus BRAKE_MARGIN_M), the speed becomes 0 and the turn is kept. A
     planner's slow-down near an obstacle is otherwise lost on a car whose slowest speed is its
-    calibrated minimum."""
+    calibrated minimum. With ``obs`` the arc the robot is on now (its yaw rate over its speed) is checked
+    too: a car's steering takes a while to reach the commanded angle; and a car told to stop while it
+    still rolls gets a steering angle whose roll-out is clear (a planner turning "on the spot" to a side
+    steered it into the box it had stopped for)."""
     v = clip(speed_m_s, -spec.max_speed_m_s, spec.max_speed_m_s)
     w = clip(yaw_rate_rad_s, -spec.max_yaw_rate_rad_s, spec.max_yaw_rate_rad_s)
     if spec.kinematics == "diff_drive":
-        if view is not None and v > 0.0 and _brake_now(spec, view, v, w / v):
+        if view is not None and v > 0.0 and _brake_now(spec, view, v, w / v, obs):
             v = 0.0
         return DriveCommand(v, w)
     if v > 0.0:
         v = max(v, spec.min_speed_m_s)
     steer = clip(math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2)), -spec.max_steer_rad, spec.max_steer_rad)
-    if view is not None and v > 0.0 and _brake_now(spec, view, v, math.tan(steer) / spec.wheelbase_m):
+    if view is not None and v > 0.0 and _brake_now(spec, view, v, math.tan(steer) / spec.wheelbase_m, obs):
         v = 0.0
+    if view is not None and obs is not None and v == 0.0 and obs.speed_m_s > 0.1:
+        steer = _roll_out_steer(spec, view, obs, steer)
     return DriveCommand(v, 0.0, steer)
 
 
-def _brake_now(spec: RobotSpec, view: "LocalView", v_m_s: float, kappa_1_m: float) -> bool:
-    """True when ``view``'s points block the footprint's way along the arc (from the reference point)
-    within the stopping distance from ``v_m_s``."""
+def _roll_out_steer(spec: RobotSpec, view: "LocalView", obs: Observation, steer: float) -> float:
+    """A car told to stop still rolls (its speed lag) along whatever its wheels point to: the steering
+    asked for when that roll-out is clear, else the first clear of the angle it is on, straight ahead and
+    full lock either way; the angle asked for when none is."""
+    if len(view.xy) == 0:
+        return steer
+    reach = BRAKE_MARGIN_M + obs.speed_m_s * (spec.control_dt_s + spec.stop_lag_s)
+    off = spec.footprint_offset_m
+    pts = view.xy + np.array([off, 0.0]) if off else view.xy
+    now = math.atan(spec.wheelbase_m * obs.yaw_rate_rad_s / obs.speed_m_s)
+    for cand in (steer, now, 0.0, spec.max_steer_rad, -spec.max_steer_rad):
+        cand = clip(cand, -spec.max_steer_rad, spec.max_steer_rad)
+        if not arc_blocked(0.0, 0.0, 0.0, math.tan(cand) / spec.wheelbase_m, reach, pts, spec.radius_m, off):
+            return cand
+    return steer
+
+
+def _brake_now(spec: RobotSpec, view: "LocalView", v_m_s: float, kappa_1_m: float, obs: Observation | None) -> bool:
+    """True when ``view``'s points block the footprint's way within the stopping distance from the larger
+    of ``v_m_s`` and the robot's speed, along the commanded arc or (with ``obs``, moving) the one it is on."""
     if len(view.xy) == 0:
         return False
-    reach = BRAKE_MARGIN_M + v_m_s * (spec.control_dt_s + spec.stop_lag_s)
+    v = v_m_s if obs is None else max(v_m_s, abs(obs.speed_m_s))
+    reach = BRAKE_MARGIN_M + v * (spec.control_dt_s + spec.stop_lag_s)
     off = spec.footprint_offset_m
     pts = view.xy + np.array([off, 0.0]) if off else view.xy  # the view is centred on the footprint
-    return arc_blocked(0.0, 0.0, 0.0, kappa_1_m, reach, pts, spec.radius_m, off)
+    if arc_blocked(0.0, 0.0, 0.0, kappa_1_m, reach, pts, spec.radius_m, off):
+        return True
+    if obs is None or abs(obs.speed_m_s) <= 0.1:
+        return False
+    return arc_blocked(0.0, 0.0, 0.0, obs.yaw_rate_rad_s / obs.speed_m_s, reach, pts, spec.radius_m, off)
 
 
 # ---- geometry helpers --------------------------------------------------------------------------

@@ -154,7 +154,7 @@ class FlbPlanner:
                 else:
                     w = 0.0
         self._remember(obs, view.xy)
-        return drive_command(spec, v, w, view)
+        return drive_command(spec, v, w, view, obs)
 
     def _remember(self, obs: Observation, xy: np.ndarray) -> None:
         """Keep the near returns of every third scan in the odometry frame (see :meth:`_blind_spot_points`)."""

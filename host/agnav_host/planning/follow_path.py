@@ -29,7 +29,7 @@ import numpy as np
 
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
-from .base import DeadlineMissed, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
+from .base import DeadlineMissed, LocalView, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
 
 __all__ = ["PathFollowerParams", "PathFollower", "FollowPathParams", "FollowPathPlanner"]
 
@@ -219,6 +219,7 @@ class FollowPathPlanner:
     def step(self, obs: Observation) -> DriveCommand:
         spec, p = self.spec, self.params
         given = obs.extras.get("path")
+        v: LocalView | None = None
         if given is not None:
             if self._given is None:
                 self._given = np.asarray(given, dtype=float)
@@ -226,7 +227,6 @@ class FollowPathPlanner:
         else:
             if self.grid is None or not self.grid.covers(obs.goal.x_m, obs.goal.y_m, margin_m=1.0):
                 self.grid = self._new_grid(obs)
-            v = None
             if obs.scan is not None:
                 v = local_view(obs, spec)
                 c, s = math.cos(obs.pose.yaw_rad), math.sin(obs.pose.yaw_rad)
@@ -249,7 +249,10 @@ class FollowPathPlanner:
         # footprint centre: the arc starts there, with no further offset.
         if given is None and v is not None and v_r > 0.0:
             kappa = w_r / v_r if v_r > 1e-6 else 0.0
-            if arc_blocked(0.0, 0.0, 0.0, kappa, p.stop_reach_m + v_r * p.stop_lag_s, v.xy, spec.radius_m, 0.0):
+            reach = p.stop_reach_m + max(v_r, abs(obs.speed_m_s)) * p.stop_lag_s
+            # the arc asked for, and the one the robot is on (a car's steering lags the command)
+            kappas = [kappa] + ([obs.yaw_rate_rad_s / obs.speed_m_s] if abs(obs.speed_m_s) > 0.1 else [])
+            if any(arc_blocked(0.0, 0.0, 0.0, k, reach, v.xy, spec.radius_m, 0.0) for k in kappas):
                 v_r = 0.0
                 self.safety_stops += 1
-        return drive_command(spec, v_r, w_r)
+        return drive_command(spec, v_r, w_r, v, obs)

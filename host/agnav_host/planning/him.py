@@ -251,7 +251,7 @@ class HimPlanner:
                 if abs(math.atan2(sy, sx)) > p.turn_in_place_rad and math.hypot(sx, sy) >= p.reach_m:
                     # still turning towards the chosen escape point: hold it (the laser's view swings
                     # with the body, and a re-choice at every step makes the robot turn to and fro)
-                    return drive_command(spec, 0.0, p.yaw_gain * math.atan2(sy, sx))
+                    return drive_command(spec, 0.0, p.yaw_gain * math.atan2(sy, sx), view, obs)
                 if math.hypot(sx, sy) < p.reach_m:
                     self.subgoal_world = None
                 else:
@@ -295,20 +295,20 @@ class HimPlanner:
                 k = int(np.argmax(free - 0.3 * np.abs(norm_angle_arr(dirs - g_rel))))
                 a = float(dirs[k])
                 if abs(a) > math.radians(10.0):
-                    return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a))
+                    return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a), view, obs)
                 v = 0.3 * spec.max_speed_m_s * min(1.0, free[k] / 0.5) if free[k] > 0.2 else 0.0
-                return drive_command(spec, v, p.yaw_gain * a, view)
+                return drive_command(spec, v, p.yaw_gain * a, view, obs)
             target = (cur[0], cur[1])
         bearing = math.atan2(target[1], target[0])
         dist = math.hypot(*target)
         w = p.yaw_gain * bearing
         if abs(bearing) > p.turn_in_place_rad:
-            return drive_command(spec, 0.0, w)
+            return drive_command(spec, 0.0, w, view, obs)
         ahead, nose = (float(x) for x in free_distances_m(view.xy, np.array([bearing, 0.0]), r + 0.02, 1.5))
         v = spec.max_speed_m_s * math.cos(bearing) ** 2 * min(1.0, ahead / 1.0 + 0.2, d_goal / p.slow_radius_m + 0.2, nose / 0.3 + 0.1)
         if self.subgoal_world is not None:
             v = min(v, spec.max_speed_m_s * max(0.4, min(1.0, dist / 0.8)))
-        return drive_command(spec, v, w, view)
+        return drive_command(spec, v, w, view, obs)
 
 
 

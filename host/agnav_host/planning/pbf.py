@@ -113,7 +113,7 @@ class PbfPlanner:
         heading = math.atan2(fy, fx)
         w = p.yaw_gain * heading
         if abs(heading) > p.turn_in_place_rad:
-            return drive_command(spec, 0.0, w)
+            return drive_command(spec, 0.0, w, view, obs)
         ahead = float(free_distances_m(view.xy, np.array([heading]), spec.radius_m + 0.02, 1.0)[0])
         v = spec.max_speed_m_s * math.cos(heading) ** 2 * min(1.0, d_goal / p.slow_radius_m + 0.2, ahead / 0.6)
-        return drive_command(spec, v, w, view)
+        return drive_command(spec, v, w, view, obs)

@@ -163,14 +163,14 @@ class VfhPlanner:
             width = 2.0 * math.pi / p.n_sectors
             steer = -math.pi + width * (int(np.argmin(h)) + 0.5)
             self._prev = steer
-            return drive_command(spec, 0.0, math.copysign(0.6 * spec.max_yaw_rate_rad_s, steer))
+            return drive_command(spec, 0.0, math.copysign(0.6 * spec.max_yaw_rate_rad_s, steer), view, obs)
         self._prev = steer
         w = p.yaw_gain * steer
         if abs(steer) > p.turn_in_place_rad:
-            return drive_command(spec, 0.0, w)
+            return drive_command(spec, 0.0, w, view, obs)
         k0 = int((0.0 + math.pi) // (2.0 * math.pi / p.n_sectors)) % p.n_sectors
         h_ahead = min(1.0, float(h[k0]) / max(p.tau_high, 1e-6))
         ahead = float(free_distances_m(view.xy, np.array([steer]), spec.radius_m + 0.02, 1.0)[0])
         v = spec.max_speed_m_s * (1.0 - 0.7 * h_ahead) * max(0.0, math.cos(steer)) ** 2
         v *= min(1.0, d_goal / p.slow_radius_m + 0.2, ahead / 0.6)
-        return drive_command(spec, v, w, view)
+        return drive_command(spec, v, w, view, obs)
