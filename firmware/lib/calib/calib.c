@@ -288,7 +288,9 @@ static void encode_table(const calib_table_t *t, uint8_t *b)
     }
 }
 
-static void decode_table(const uint8_t *b, calib_table_t *t)
+/* decode_table() and encode_header(): boot, load and save only. Not inlined: ~90 B less flash on
+ * the AVR (LTO). */
+__attribute__((noinline)) static void decode_table(const uint8_t *b, calib_table_t *t)
 {
     t->neutral_pwm = get_u16(b);
     uint8_t k = 2u;
@@ -303,7 +305,7 @@ static void decode_table(const uint8_t *b, calib_table_t *t)
     }
 }
 
-static void encode_header(uint8_t *h)
+__attribute__((noinline)) static void encode_header(uint8_t *h)
 {
     put_u16(h, CALIB_MAGIC);
     h[2] = CALIB_LAYOUT_VERSION;
