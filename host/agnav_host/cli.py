@@ -9,7 +9,11 @@ Any option that takes a value may be given a negative number after a space (``--
 ``--start-speed -1e-3``): :func:`main` joins such an option with a value that reads as a number or a
 comma-separated list of numbers (``--goal=-3,5,90``) before argparse sees it, since argparse would
 otherwise take the value for an option. The options that take a value are read from the parser, so a
-subcommand declares nothing for this.
+subcommand declares nothing for this. Beyond that, the parsers (:class:`_Parser`) take any word that starts
+like a negative number for a value, never an option: after an abbreviated option (``--start-steer -1e-3``),
+as a positional (``param set NAME -1e3``) and when the list is malformed (``--goal -3,abc,90`` gets the
+option's own message), and they take a subcommand's options between its positionals
+(``param get --device X NAME``).
 
 Number options use the checked types below (:func:`finite_float`, :func:`positive_float`, ...) so that
 ``nan``, ``inf`` or a negative count is refused by argparse with the option's name, not deep in a run.
@@ -43,6 +47,32 @@ SUBCOMMANDS: dict[str, _Sub] = {}
 _UNSIGNED = r"((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan)"
 # a negative number, or a comma-separated list of numbers starting with one: "-3,5,90", "-1e-3", "-inf"
 _NUMLIST = re.compile(rf"^-{_UNSIGNED}(,[-+]?{_UNSIGNED})*$", re.IGNORECASE)
+
+
+# A word that starts like a negative number ("-3,5,90", "-1e-3", "-inf", a malformed "-3,abc,90"): a value for
+# argparse, never an option (no option of agnav starts with "-" and a digit, ".", "inf" or "nan").
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with two rules for people typing commands: a word that starts like a negative number
+    is a value (:data:`_NEGATIVE_VALUE`), and a subcommand's options may stand between its positionals
+    (``param get --device X NAME``: argparse's intermixed parsing, for every parser without subcommands)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_VALUE
+        self._in_intermixed = False
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        if self._in_intermixed or any(a.nargs in (argparse.PARSER, argparse.REMAINDER)
+                                      for a in self._get_positional_actions()):
+            return super().parse_known_args(args, namespace)
+        self._in_intermixed = True  # parse_known_intermixed_args calls parse_known_args: plain ones from here
+        try:
+            return self.parse_known_intermixed_args(args, namespace)
+        finally:
+            self._in_intermixed = False
 
 
 def _number(text: str) -> float:
@@ -134,6 +164,12 @@ def _value_options(parser: argparse.ArgumentParser) -> dict[str, set[str]]:
     return out
 
 
+def _subparser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
+    """The parser of subcommand ``name``."""
+    act = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return act.choices[name]  # type: ignore[no-any-return]
+
+
 def _join_negative_values(argv: list[str], value_options: dict[str, set[str]]) -> list[str]:
     """Join an option that takes a value (``value_options``: :func:`_value_options`) with a following
     negative number (list): ``--x -1`` -> ``--x=-1``."""
@@ -181,7 +217,7 @@ def _load_command_modules() -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     _load_command_modules()
-    parser = argparse.ArgumentParser(prog="agnav", description="AgNav host companion")
+    parser = _Parser(prog="agnav", description="AgNav host companion")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for s in SUBCOMMANDS.values():
@@ -215,7 +251,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agnav`` console script; returns the exit code."""
     parser = build_parser()  # first: every subcommand's options must be known to the joiner
     args = _join_negative_values(list(sys.argv[1:] if argv is None else argv), _value_options(parser))
-    ns = parser.parse_args(args)
+    ns, extras = parser.parse_known_args(args)
+    if extras:  # with the subcommand's usage, not agnav's
+        _subparser(parser, ns.command).error(f"unrecognized arguments: {' '.join(extras)}")
     handler: Handler = ns._handler
     try:
         rc = handler(ns)

@@ -314,3 +314,50 @@ def test_a_closed_output_pipe_ends_the_command_quietly(tmp_path, argv):
     err = p.stderr.read().decode()
     assert p.wait(timeout=120) == 141  # cli.EXIT_BROKEN_PIPE: as if killed by SIGPIPE
     assert err == "", err
+
+
+# ---- B3, B4: options between positionals, negative values after abbreviated options and as positionals ----
+def _parse(argv: list[str]):
+    parser = cli.build_parser()
+    return parser.parse_args(cli._join_negative_values(argv, cli._value_options(parser)))
+
+
+def test_param_takes_options_between_its_positionals_against_the_fake_robot(capsys):
+    from agnav_host.link.fake import FakeRobot
+
+    with FakeRobot() as fr:
+        assert cli.main(["param", "set", "GOAL_TOL_MM", "--device", fr.device, "--no-tlog", "150"]) == 0
+        assert fr.params["GOAL_TOL_MM"] == 150
+        assert cli.main(["param", "get", "--device", fr.device, "--wait", "2", "--no-tlog", "GOAL_TOL_MM"]) == 0
+    assert "GOAL_TOL_MM 150" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, dest, value", [
+    (["param", "set", "AVOID_WAIT_MS", "-1e3", "--device", "tcp:h:1"], "value", "-1e3"),
+    (["param", "set", "AVOID_WAIT_MS", "--device", "tcp:h:1", "-1e3"], "value", "-1e3"),
+    (["param", "set", "AVOID_WAIT_MS", "-inf"], "value", "-inf"),
+    (["plan", "--start", "0,0,0", "--goal", "3,5,90", "--start-steer", "-1e-3"], "start_steer_deg", -1e-3),
+    (["rows", "--scan", "s.csv", "--mou", "-0.2,0.1,-5"], "mount", None),
+    (["sim", "--out", "o", "--go", "-3,1"], "goal", (-3.0, 1.0, None)),
+])
+def test_negative_values_after_abbreviated_options_and_as_positionals(argv, dest, value):
+    got = getattr(_parse(argv), dest)
+    assert got is not None and (value is None or got == value), got
+
+
+@pytest.mark.parametrize("goal, why", [("-3,abc,90", "pose must contain numbers, got '-3,abc,90'"),
+                                       ("-3,5,90,", "pose must be X,Y,HEADING_DEG, got '-3,5,90,'"),
+                                       ("-3,,90", "pose must contain numbers, got '-3,,90'")])
+def test_a_malformed_negative_list_gets_the_options_own_message(capsys, goal, why):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["plan", "--start", "0,0,0", "--goal", goal])
+    assert e.value.code == 2
+    assert f"agnav plan: error: argument --goal: {why}" in capsys.readouterr().err
+
+
+def test_stray_arguments_are_named_with_the_subcommands_usage(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["param", "set", "A", "1", "2", "--device", nowhere()])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "usage: agnav param" in err and "agnav param: error: unrecognized arguments: 2" in err
