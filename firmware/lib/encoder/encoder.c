@@ -354,7 +354,8 @@ uint32_t encoder_travel_per_count_nm(uint8_t idx)
 
 /* ---- loop side -------------------------------------------------------- */
 
-static int32_t iabs32(int32_t v) { return v < 0 ? -v : v; }
+/* |v| as unsigned: defined for INT32_MIN too (2^31), where -v would overflow */
+static uint32_t uabs32(int32_t v) { return v < 0 ? 0u - (uint32_t)v : (uint32_t)v; }
 
 /* travel_um() beyond 16 x 16 bit operands (|dc| >= 2^15 or >= 256 mm per count), in 32-bit
  * halves: x = dc * um_q8 + resid = hi * 2^32 + lo in two's complement, and x >> 8 (floor) =
@@ -388,7 +389,7 @@ __attribute__((noinline)) static int32_t travel_um_wide(enc_loop_t *w, int32_t d
 static int32_t travel_um(enc_loop_t *w, int32_t dc)
 {
     /* |dc| < 2^15 and um_q8 < 2^16 (< 256 mm per count): the product fits int32 */
-    if (iabs32(dc) < 0x8000 && w->um_q8_per_count < 0x10000u) {
+    if (uabs32(dc) < 0x8000u && w->um_q8_per_count < 0x10000u) {
         /* 16 x 16 -> 32 bit operands: avr-gcc calls its short widening multiply */
         int32_t acc = (int32_t)(int16_t)dc * (int32_t)(uint16_t)w->um_q8_per_count + (int32_t)w->resid_q8;
         w->resid_q8 = (uint8_t)(acc & 0xFF);
@@ -403,7 +404,7 @@ static int32_t travel_um(enc_loop_t *w, int32_t dc)
  * < 65 mm of travel); otherwise a 64-bit division (rare). */
 static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
 {
-    uint32_t mag = (uint32_t)iabs32(d_um);
+    uint32_t mag = uabs32(d_um);
     uint32_t v;
     if (mag <= 0xFFFFu && recip_q16 <= 0xFFFFu) {
         v = ((uint32_t)(uint16_t)mag * (uint16_t)recip_q16 + 32768u) >> 16; /* 16 x 16 -> 32 */
@@ -449,10 +450,10 @@ static void update_wheel(enc_loop_t *w, uint32_t now_us, int32_t dt_us, uint32_t
 
     /* ---- speed ---- */
     uint8_t flags = (uint8_t)(w->flags & ENCODER_F_ERROR_RATIO);
-    int32_t adc = iabs32(dc);
+    uint32_t adc = uabs32(dc);
     if (dt_us <= 0) {
         /* Same instant as the last update: keep the previous speed. */
-    } else if (adc >= (int32_t)w->crossover_counts) {
+    } else if (adc >= (uint32_t)w->crossover_counts) {
         w->speed_mm_s = count_speed_mm_s(d_um, recip_q16, dt_us);
         w->method = ENCODER_SPEED_COUNT;
     } else if (w->dir == 0) {

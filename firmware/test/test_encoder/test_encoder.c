@@ -347,8 +347,9 @@ static int32_t ref_travel_um(int32_t dc, uint32_t nm, uint8_t *resid)
 static void test_encoder_update_wide_travel_matches_the_64_bit_formula(void)
 {
     /* 3.999999997 m per count: every update takes the wide path; 600 counts (2.4 km) saturate at
-     * INT32_MAX, 530 back (2.12 km) just do not */
-    static const int16_t BURSTS[] = {3, -5, 1, 0, -1, 7, 600, -530, 2, -2};
+     * INT32_MAX, 530 back (2.12 km) just do not, 600 back saturate at INT32_MIN (whose magnitude the
+     * speed estimate takes: undefined behaviour as a signed negation, caught by UBSan natively) */
+    static const int16_t BURSTS[] = {3, -5, 1, 0, -1, 7, 600, -530, 2, -2, -600, 4};
     const uint32_t nm = 3999999997u;
     encoder_cfg_t c = quad_cfg(0);
     c.travel_per_count_nm = nm;
