@@ -361,3 +361,24 @@ def test_stray_arguments_are_named_with_the_subcommands_usage(capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "usage: agnav param" in err and "agnav param: error: unrecognized arguments: 2" in err
+
+
+# ---- B7: replay counts the bytes it could not decode, and refuses a file that is mostly not MAVLink -------
+def test_replay_says_how_much_of_the_file_was_skipped(tmp_path, capsys):
+    import numpy as np
+
+    good = _tlog(tmp_path / "good.tlog")
+    assert cli.main(["replay", str(good)]) == 0
+    assert "could not be decoded" not in capsys.readouterr().out
+    damaged = tmp_path / "damaged.tlog"
+    raw = good.read_bytes()
+    damaged.write_bytes(raw + bytes(40))  # a tail of zeros, as a log cut short by a crash can end
+    assert cli.main(["replay", str(damaged)]) == 0
+    assert f"40 B of {len(raw) + 40} (" in capsys.readouterr().out
+    noise = tmp_path / "random.tlog"
+    noise.write_bytes(np.random.default_rng(3).bytes(100_000))
+    rc = cli.main(["replay", str(noise)])
+    cap = capsys.readouterr()
+    assert rc == 2 and "Traceback" not in cap.err
+    assert "could not be decoded as MAVLink frames and were skipped" in cap.out
+    assert cap.err.strip().startswith(f"agnav replay: {noise}: ") and "is not MAVLink frames: not a .tlog" in cap.err

@@ -637,6 +637,9 @@ subcommand("flash", help="build and upload the firmware (pio run -e ENV -t uploa
 
 
 # ---- replay --------------------------------------------------------------------------------------
+#: replay refuses a log (exit 2, after its summary) when more than this share of it is not MAVLink frames
+MAX_UNDECODED = 0.5
+
 def _cmd_replay(ns: argparse.Namespace) -> int:
     from .replay import TlogError, summarize_tlog
 
@@ -657,6 +660,10 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
         _err("replay", f"{ns.log}: no MAVLink frames in {size} B (empty, or not a .tlog telemetry log)")
         return 2
     print(s.text(ns.budget))
+    if s.undecoded_fraction > MAX_UNDECODED:  # after the summary: what could be read is still shown
+        _err("replay", f"{ns.log}: {100 * s.undecoded_fraction:.1f} % of the file ({s.undecoded_bytes} of "
+                       f"{s.file_bytes} B) is not MAVLink frames: not a .tlog telemetry log, or badly corrupt")
+        return 2
     if ns.png:
         from ..viz.plots import plot_run
 
@@ -680,7 +687,8 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
     return 0
 
 
-subcommand("replay", help="summarise a .tlog (rates, layers, status texts); optional PNG and rerun .rrd",
+subcommand("replay", help="summarise a .tlog (rates, layers, status texts); optional PNG and rerun .rrd; exit 2 "
+                          "when more than half of the file is not MAVLink frames",
            args=[(("log",), {"help": "telemetry log (.tlog, mavutil format)"}),
                  (("--rrd",), {"default": None,
                                "help": "write a rerun recording of the log, FILE.rrd (default: none)"}),

@@ -34,6 +34,13 @@ class TlogSummary:
     final_pose: tuple[float, float, float] | None = None
     poses: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, yaw
     layers: list[tuple[float, int]] = field(default_factory=list)  # t, layer
+    file_bytes: int = 0  # size of the file
+    undecoded_bytes: int = 0  # bytes that were not a frame with its 8-byte time stamp (skipped: corrupt, not a tlog)
+
+    @property
+    def undecoded_fraction(self) -> float:
+        """Share of the file, 0..1, that was not MAVLink frames."""
+        return self.undecoded_bytes / self.file_bytes if self.file_bytes else 0.0
 
     @property
     def rx_rate_bytes_s(self) -> float:
@@ -44,6 +51,9 @@ class TlogSummary:
                f"{self.rx_bytes} B ({self.rx_rate_bytes_s:.0f} B/s, budget {budget_bytes_s:.0f} B/s"
                f"{', OVER' if self.rx_rate_bytes_s > budget_bytes_s else ''}), sent {sum(self.tx_msgs.values())} "
                f"frames / {self.tx_bytes} B"]
+        if self.undecoded_bytes:
+            out.append(f"{self.undecoded_bytes} B of {self.file_bytes} ({100 * self.undecoded_fraction:.1f} %) could not "
+                       "be decoded as MAVLink frames and were skipped (a corrupt log, or not a telemetry log)")
         if self.breaks:
             out.append(f"({self.breaks} break(s) in the time stamps - the clock set, or runs appended to one file - "
                        "left out of the times)")
@@ -89,7 +99,8 @@ def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSumma
     from the first frame, with any break in the stamps left out (:class:`~.tlog.LogClock`)."""
     _check_readable(path)
     hosts = {host_sysid} if host_sysid is not None else host_systems(path)
-    s = TlogSummary(str(path))
+    s = TlogSummary(str(path), file_bytes=Path(path).stat().st_size)
+    frame_bytes = 0  # every frame with its 8-byte time stamp: the rest of the file was skipped by the reader
     clock = LogClock()
     last_layer: tuple[int, int] | None = None
     last_layer_t = 0.0
@@ -98,6 +109,7 @@ def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSumma
         rel = clock.tick(t)
         typ = m.get_type()
         n = len(m.get_msgbuf())
+        frame_bytes += n + 8
         if m.get_srcSystem() in hosts:
             s.tx_msgs[typ] += 1
             s.tx_bytes += n
@@ -127,4 +139,5 @@ def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSumma
             s.statustexts.append((rel, txt.split("\x00", 1)[0]))
     s.duration_s = clock.rel_s
     s.breaks = clock.breaks
+    s.undecoded_bytes = max(0, s.file_bytes - frame_bytes)
     return s
