@@ -382,3 +382,15 @@ def test_replay_says_how_much_of_the_file_was_skipped(tmp_path, capsys):
     assert rc == 2 and "Traceback" not in cap.err
     assert "could not be decoded as MAVLink frames and were skipped" in cap.out
     assert cap.err.strip().startswith(f"agnav replay: {noise}: ") and "is not MAVLink frames: not a .tlog" in cap.err
+
+
+# ---- B2: calibrate --settle-s must be below the step's time limit, as in the config file -----------------
+@pytest.mark.parametrize("opts, why", [
+    (["--settle-s", "2", "--max-step-s", "0.5"], "--settle-s (2 s) must be < --max-step-s (0.5 s)"),
+    (["--settle-s", "10"], "--settle-s (10 s) must be < [calibration] max_step_s (6 s)"),
+    (["--max-step-s", "0.2"], "[calibration] settle_s (1 s) must be < --max-step-s (0.2 s)"),
+])
+def test_calibrate_settle_time_not_below_the_step_limit_is_refused_before_connecting(capsys, opts, why):
+    assert cli.main(["calibrate", "steering", "--device", nowhere(), "--no-tlog", "--yes", *opts]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"agnav calibrate: {why}: a sweep step settles first, then measures"

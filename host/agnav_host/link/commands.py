@@ -541,6 +541,14 @@ def _cmd_calibrate(ns: argparse.Namespace) -> int:
         v = getattr(ns, k)
         if v is not None:
             setattr(c, k, v)
+    if c.settle_s >= c.max_step_s:  # as the config file's check ([calibration] settle_s < max_step_s), with the options
+
+        def name(k: str) -> str:
+            return f"--{k.replace('_', '-')}" if getattr(ns, k) is not None else f"[calibration] {k}"
+
+        _err("calibrate", f"{name('settle_s')} ({c.settle_s:g} s) must be < {name('max_step_s')} ({c.max_step_s:g} s): "
+                          "a sweep step settles first, then measures")
+        return 2
     if ns.plot_dir:  # before the link opens: a sweep's plot must not fail on a folder known to be unusable
         png = Path(ns.plot_dir) / f"calib_{'steer' if ns.table == 'steering' else 'speed'}.png"
         why = _unwritable_reason(png)
