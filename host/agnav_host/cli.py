@@ -426,8 +426,10 @@ def _missing_sensor(sc: Any, planner: str) -> str | None:
 
 
 def unusable_out_dir(out: str) -> str | None:
-    """Why ``out`` cannot be the output folder (a file, or a folder that cannot be made), or None; made here,
-    before a long run, so that the run is not lost to a typo."""
+    """Why ``out`` cannot be the output folder (a file, a folder that cannot be made, or one that takes no new
+    files), or None; made and tried here, before a long run, so that the run is not lost to a typo or to a
+    read-only folder."""
+    import tempfile
     from pathlib import Path
 
     p = Path(out)
@@ -437,6 +439,11 @@ def unusable_out_dir(out: str) -> str | None:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         return f"cannot create the folder: {e.strerror or e}"
+    try:
+        with tempfile.NamedTemporaryFile(dir=p, prefix=".agnav-write-check-"):
+            pass
+    except OSError as e:
+        return f"cannot write in the folder: {e.strerror or e}"
     return None
 
 

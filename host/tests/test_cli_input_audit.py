@@ -394,3 +394,14 @@ def test_calibrate_settle_time_not_below_the_step_limit_is_refused_before_connec
     assert cli.main(["calibrate", "steering", "--device", nowhere(), "--no-tlog", "--yes", *opts]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"agnav calibrate: {why}: a sweep step settles first, then measures"
+
+
+# ---- B5: sim --out: an existing folder that takes no new files is refused before the run ------------------
+def test_sim_out_folder_that_cannot_be_written_is_refused_before_the_run(capsys, monkeypatch):
+    import agnav_host.sim.runner as runner
+
+    ran: list[int] = []
+    monkeypatch.setattr(runner, "run_scenario", lambda *a, **k: ran.append(1))
+    assert cli.main(["sim", "him_setup1", "--duration", "1", "--quiet", "--out", UNWRITABLE_DIR]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"agnav sim: --out {UNWRITABLE_DIR}: cannot write in the folder:") and not ran
