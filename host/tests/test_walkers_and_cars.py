@@ -311,3 +311,12 @@ def test_a_car_told_to_stop_does_not_steer_its_roll_out_into_a_box():
     assert cmd.speed_m_s == 0.0 and cmd.steer_rad == pytest.approx(0.0)
     # standing still there is no roll-out: the steering asked for is kept
     assert drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.0, 0.0)).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)
+
+
+@pytest.mark.parametrize("start_s", [1.0, 2.0, 3.0])
+def test_follow_path_lets_a_walker_by_and_does_not_map_its_trail(start_s):
+    r, ctl = _run(walker_crossing(start_s), "follow-path")
+    assert r.end_reason == "arrived" and float(r.trajectory[:, 6].min()) > 0.1
+    # without the tracker the walker's trail walls off its beat in the map and the car is walked into
+    r2, _ = _run(walker_crossing(start_s), "follow-path", params__mover_horizon_s=0.0)
+    assert r2.end_reason == "collision"

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
 from .base import DeadlineMissed, LocalView, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
@@ -153,6 +154,11 @@ class FollowPathParams:
     plan_deadline_s: float = 0.05
     stop_reach_m: float = 0.05  # the last line of defence looks this far along the arc, plus stop_lag_s of travel
     stop_lag_s: float = 0.4
+    # moving obstacles (people walking) from the laser tracker: the robot stops when driving on along its
+    # arc would meet one within mover_horizon_s (mover_margin_m of clearance), unless standing would not
+    # escape it either. 0 horizon: off
+    mover_horizon_s: float = 2.0
+    mover_margin_m: float = 0.1
 
     def __post_init__(self) -> None:
         if not (self.inflate_margin_m >= 0 and self.grid_size_m > 0 and self.grid_res_m > 0 and self.replan_s > 0):
@@ -162,7 +168,12 @@ class FollowPathParams:
 class FollowPathPlanner:
     """Follows ``obs.extras["path"]`` when the scenario gives one; otherwise plans with A* on an
     occupancy grid built from the laser (unknown = free), replanning every ``replan_s`` and on a
-    new goal, and follows that path with :class:`PathFollower`."""
+    new goal, and follows that path with :class:`PathFollower`.
+
+    People walking: perception's obstacle tracker runs on the scans; returns of a moving track are kept
+    out of the map (a walker's trail would wall off its whole beat), and the robot stands while driving
+    on along its arc would meet a moving track within ``mover_horizon_s`` (constant-velocity prediction),
+    unless standing would be met as soon (``_stand_for_movers``)."""
 
     name = "follow-path"
     uses_sonar = False
@@ -183,7 +194,10 @@ class FollowPathPlanner:
         self._since_plan = math.inf
         self.plan_failures = 0
         self.safety_stops = 0  # steps the last line of defence stopped the robot
+        self.mover_stops = 0  # steps the robot stood for a moving obstacle
         self._n_scans = 0
+        self.tracker = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
+        self.tracked_moving: list[Track] = []
 
     def _new_grid(self, obs: Observation) -> OccupancyGrid:
         """The map's window: ``grid_size_m`` centred on the robot when the goal lies inside it (a metre from
@@ -220,6 +234,8 @@ class FollowPathPlanner:
         spec, p = self.spec, self.params
         given = obs.extras.get("path")
         v: LocalView | None = None
+        if p.mover_horizon_s > 0.0 and obs.scan is not None and obs.scan.pose is not None:
+            self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, obs.t_s) if tr.moving]
         if given is not None:
             if self._given is None:
                 self._given = np.asarray(given, dtype=float)
@@ -235,7 +251,10 @@ class FollowPathPlanner:
                 origin = None
                 if self._n_scans % 3 == 0 and obs.scan.pose is not None:
                     origin = (obs.scan.pose.x_m, obs.scan.pose.y_m)
-                self.grid.add_points(np.column_stack((obs.pose.x_m + c * x - s * v.xy[:, 1], obs.pose.y_m + s * x + c * v.xy[:, 1])), origin)
+                world = np.column_stack((obs.pose.x_m + c * x - s * v.xy[:, 1], obs.pose.y_m + s * x + c * v.xy[:, 1]))
+                for tr in self.tracked_moving:  # a walker is not mapped: its trail would wall off its beat
+                    world = world[np.hypot(world[:, 0] - tr.x_m, world[:, 1] - tr.y_m) > tr.radius_m + 0.15]
+                self.grid.add_points(world, origin)
             key = (obs.goal.x_m, obs.goal.y_m)
             self._since_plan += spec.control_dt_s
             if key != self._goal_key or self._since_plan >= p.replan_s:
@@ -255,4 +274,38 @@ class FollowPathPlanner:
             if any(arc_blocked(0.0, 0.0, 0.0, k, reach, v.xy, spec.radius_m, 0.0) for k in kappas):
                 v_r = 0.0
                 self.safety_stops += 1
+        if v_r > 0.0 and self.tracked_moving and self._stand_for_movers(obs, v_r, w_r):
+            v_r = 0.0
+            self.mover_stops += 1
         return drive_command(spec, v_r, w_r, v, obs)
+
+    def _stand_for_movers(self, obs: Observation, v_r: float, w_r: float) -> bool:
+        """True when driving on along the current arc at ``v_r`` (at least the speed the robot has) meets a
+        tracked moving obstacle, predicted at constant velocity, within ``mover_horizon_s``, and standing
+        here would not be met sooner: a person crossing ahead is let by, one heading for where the robot
+        stands is not waited for."""
+        p, spec = self.params, self.spec
+        ts = np.arange(0.0, p.mover_horizon_s + 1e-9, 0.1)
+        v = max(v_r, abs(obs.speed_m_s))
+        k = w_r / v_r
+        yaw0, off = obs.pose.yaw_rad, spec.footprint_offset_m
+        s = v * ts
+        yaw = yaw0 + k * s
+        if abs(k) < 1e-6:
+            x, y = obs.pose.x_m + s * math.cos(yaw0), obs.pose.y_m + s * math.sin(yaw0)
+        else:
+            x = obs.pose.x_m + (np.sin(yaw) - math.sin(yaw0)) / k
+            y = obs.pose.y_m - (np.cos(yaw) - math.cos(yaw0)) / k
+        gx, gy = x + off * np.cos(yaw), y + off * np.sin(yaw)  # footprint centre driving on
+        hx, hy = gx[0], gy[0]  # ... and standing
+        first_go = first_stand = math.inf
+        for tr in self.tracked_moving:
+            ox, oy = tr.x_m + tr.vx_m_s * ts, tr.y_m + tr.vy_m_s * ts
+            lim = tr.radius_m + spec.radius_m + p.mover_margin_m
+            hit = np.flatnonzero(np.hypot(gx - ox, gy - oy) < lim)
+            if len(hit):
+                first_go = min(first_go, float(ts[hit[0]]))
+            hit = np.flatnonzero(np.hypot(hx - ox, hy - oy) < lim)
+            if len(hit):
+                first_stand = min(first_stand, float(ts[hit[0]]))
+        return first_go < math.inf and first_go <= first_stand
