@@ -405,3 +405,34 @@ def test_sim_out_folder_that_cannot_be_written_is_refused_before_the_run(capsys,
     assert cli.main(["sim", "him_setup1", "--duration", "1", "--quiet", "--out", UNWRITABLE_DIR]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"agnav sim: --out {UNWRITABLE_DIR}: cannot write in the folder:") and not ran
+
+
+# ---- B6: sil --tlog checked (named, before the firmware loads) and its missing folders made ----------------
+@pytest.fixture
+def no_serve(monkeypatch):
+    """agnav sil without the firmware: records the tlog path serve() was given."""
+    from types import SimpleNamespace
+
+    import agnav_host.sil.server as server
+
+    calls: list[str | None] = []
+
+    def serve(sc, opt):
+        calls.append(opt.tlog_path)
+        return SimpleNamespace(t_s=0.0, pose=SimpleNamespace(x_m=0.0, y_m=0.0))
+
+    monkeypatch.setattr(server, "serve", serve)
+    return calls
+
+
+def test_sil_unwritable_tlog_is_named_before_the_firmware_loads(capsys, no_serve):
+    bad = f"{UNWRITABLE_DIR}/x.tlog"
+    assert cli.main(["sil", "--tlog", bad, "--duration", "1", "--tcp", "tcp:127.0.0.1:0"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"agnav sil: --tlog {bad}: cannot write there:") and no_serve == []
+
+
+def test_sil_tlog_missing_folders_are_made(tmp_path, capsys, no_serve):
+    t = tmp_path / "new" / "sub" / "x.tlog"
+    assert cli.main(["sil", "--tlog", str(t), "--duration", "1", "--tcp", "tcp:127.0.0.1:0"]) == 0
+    assert no_serve == [str(t)] and t.parent.is_dir()

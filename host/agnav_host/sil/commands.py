@@ -59,12 +59,25 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
     if tcp is None and not ns.pty:
         print("agnav sil: nothing to serve on (--tcp none and no --pty)", file=sys.stderr)
         return 2
+    if ns.tlog:  # before the firmware loads, as `agnav run --tlog`: named, and its missing folders made
+        from pathlib import Path
+
+        from ..link.commands import OutputError, check_output
+
+        try:
+            check_output("--tlog", ns.tlog)
+            Path(ns.tlog).parent.mkdir(parents=True, exist_ok=True)
+        except (OutputError, OSError) as e:
+            print(f"agnav sil: {e if isinstance(e, OutputError) else f'--tlog {ns.tlog}: {e.strerror or e}'}",
+                  file=sys.stderr)
+            return 1
     cfg = SilConfig(firmware_params=tuple(ns.param), firmware=ns.firmware)
     try:
         res = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
                                      tlog_path=ns.tlog, config=cfg))
     except (SilBuildError, ValueError, OSError) as e:
-        print(f"agnav sil: {getattr(e, 'strerror', None) or e}", file=sys.stderr)
+        where = f"{e.filename}: " if isinstance(e, OSError) and e.filename else ""
+        print(f"agnav sil: {where}{getattr(e, 'strerror', None) or e}", file=sys.stderr)
         return 1
     print(f"agnav sil: stopped at t = {res.t_s:.1f} s, robot at ({res.pose.x_m:.2f}, {res.pose.y_m:.2f})")
     return 0
