@@ -277,3 +277,42 @@ def test_bench_unknown_planner_is_named_with_the_known_ones(no_run, capsys):
     err = capsys.readouterr().err
     assert "unknown planner entry nosuch" in err and "flb@0.3" in err and "him" in err
     assert "nothing to run" not in err and no_run == []
+
+
+# A10 (CLI audit): empty filters are an error; a subset run never replaces the default folder's full tables
+@pytest.mark.parametrize("opt, val", [("--scenarios", ""), ("--planners", ""), ("--scenarios", ","), ("--planners", " ")])
+def test_bench_empty_filter_is_an_error(opt, val, tmp_path, no_run, capsys):
+    assert main(["bench", "planners", "--out", str(tmp_path / "o"), opt, val, "--quiet", "--no-plot"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"agnav bench: {opt} {val!r} names nothing; leave the option out to run the whole suite"
+    assert no_run == []
+
+
+@pytest.mark.parametrize("subset", [["--scenarios", "canyon"], ["--planners", "him"], ["--seeds", "1"]])
+def test_bench_subset_needs_its_own_out(subset, tmp_path, no_run, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "planners", *subset, "--quiet", "--no-plot"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "a subset run (--scenarios, --planners or --seeds) needs --out" in err and "bench/results/planners" in err
+    assert no_run == [] and not (tmp_path / "bench").exists()
+
+
+def test_bench_explicit_out_replaces_an_earlier_runs_tables_and_plots(tmp_path, no_run, capsys):
+    out = tmp_path / "copy"
+    out.mkdir()
+    for name in ("runs.csv", "summary.csv", "planners.md", "paths_canyon.png", "speed_him_wall.png",
+                 "curvature_flb_setup1.png"):
+        (out / name).write_text("full run")
+    (out / "notes.md").write_text("mine")
+    assert main(["bench", "planners", "--out", str(out), "--scenarios", "canyon", "--planners", "him", "--seeds", "1",
+                 "--no-plot"]) == 0
+    assert "removed 6 file(s) of an earlier run" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["notes.md", "planners.md", "runs.csv", "summary.csv"]
+    assert "full run" not in (out / "runs.csv").read_text()
+
+
+# B1 (CLI audit): --samples has an upper bound, refused by argparse before any planning
+@pytest.mark.parametrize("val", ["100001", "10000000", "1000000000"])
+def test_plan_samples_has_an_upper_bound(val, capsys):
+    assert _exit_code(["plan", "--start", "0,0,0", "--goal", "3,5,90", "--samples", val]) == 2
+    assert f"argument --samples: must be 2..100000, got '{val}'" in capsys.readouterr().err

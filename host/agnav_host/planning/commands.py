@@ -1,7 +1,12 @@
 """``agnav planners`` and ``agnav bench planners``: CLI wrappers around the registry and the benchmark.
 
 ``agnav bench`` exits 0 after a run, 1 when the output folder cannot be made or written, 2 for a bad
-option (an unknown scenario or planner entry is named, with the known ones).
+option (an unknown scenario or planner entry is named, with the known ones; an empty ``--scenarios`` or
+``--planners``; a subset run without ``--out``).
+
+The default output folder, ``bench/results/planners``, holds the whole suite's tables (committed): a subset
+run (``--scenarios``, ``--planners`` or ``--seeds``) must name its own ``--out``. Before a run, the files a
+previous run left in the folder (tables and plots) are removed, so that it never mixes two runs.
 """
 
 from __future__ import annotations
@@ -9,10 +14,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from ..cli import positive_int, subcommand, unusable_out_dir
 
 __all__: list[str] = []
+
+DEFAULT_OUT = "bench/results/planners"
+#: What a run writes into its folder (write_report): removed before a run when an earlier one left them.
+BENCH_OUTPUTS = ("runs.csv", "summary.csv", "planners.md", "paths_*.png", "speed_*.png", "curvature_*.png")
 
 
 @subcommand("planners", help="list the host planners and perception controllers (names for agnav sim --planner)")
@@ -37,7 +47,10 @@ def _cmd_planners(ns: argparse.Namespace) -> int:
     epilog="exit codes: 0 = done, 1 = the output folder cannot be made or written, 2 = a bad option",
     args=[
         (("suite",), {"choices": ["planners"], "help": "which benchmark"}),
-        (("--out",), {"default": "bench/results/planners", "help": "output folder (default bench/results/planners)"}),
+        (("--out",), {"default": None,
+                      "help": f"output folder (default {DEFAULT_OUT}, for the whole suite only: a run with --scenarios, "
+                              "--planners or --seeds must name its own --out, so that it never replaces the suite's "
+                              "committed tables); the tables and plots of an earlier run in it are removed first"}),
         (("--jobs",), {"type": positive_int, "default": None, "metavar": "N",
                        "help": "worker processes, >= 1 (default: all cores)"}),
         (("--scenarios",), {"default": None, "help": "comma-separated subset of the suite's scenarios"}),
@@ -54,6 +67,11 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     from .bench import SUITE, progress_bar, run_suite, write_report
 
     suite = list(SUITE)
+    for opt, value in (("--scenarios", ns.scenarios), ("--planners", ns.planners)):
+        if value is not None and not [v for v in value.split(",") if v.strip()]:
+            print(f"agnav bench: {opt} {value!r} names nothing; leave the option out to run the whole suite",
+                  file=sys.stderr)
+            return 2
     if ns.scenarios:
         want = [s.strip() for s in ns.scenarios.split(",") if s.strip()]
         unknown = [s for s in want if s not in {c.scenario for c in SUITE}]
@@ -81,21 +99,40 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     if not suite:
         print("agnav bench: nothing to run", file=sys.stderr)
         return 2
-    bad_out = unusable_out_dir(ns.out)
+    if ns.out is None and (ns.scenarios is not None or ns.planners is not None or ns.seeds is not None):
+        print(f"agnav bench: a subset run (--scenarios, --planners or --seeds) needs --out: the default {DEFAULT_OUT} "
+              "holds the whole suite's tables", file=sys.stderr)
+        return 2
+    out = DEFAULT_OUT if ns.out is None else ns.out
+    bad_out = unusable_out_dir(out) or _clear_bench_outputs(out, ns.quiet)
     if bad_out:  # before the run, so that a long run is not lost to a typo
-        print(f"agnav bench: --out {ns.out}: {bad_out}", file=sys.stderr)
+        print(f"agnav bench: --out {out}: {bad_out}", file=sys.stderr)
         return 1
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)
     wall = time.perf_counter() - t0
-    cmd = f"agnav bench planners --out {ns.out}" + (f" --jobs {ns.jobs}" if ns.jobs else "") + \
+    cmd = f"agnav bench planners --out {out}" + (f" --jobs {ns.jobs}" if ns.jobs else "") + \
         (f" --scenarios {ns.scenarios}" if ns.scenarios else "") + (f" --planners {ns.planners}" if ns.planners else "") + \
         (f" --seeds {ns.seeds}" if ns.seeds is not None else "")
     try:
-        paths = write_report(results, ns.out, cmd, wall, plots=not ns.no_plot)
+        paths = write_report(results, out, cmd, wall, plots=not ns.no_plot)
     except OSError as e:  # disk full, folder removed or made read-only during the run
         from ..cli import _report_write_failure
 
-        return _report_write_failure("bench", ns.out, e)
-    print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {ns.out}")
+        return _report_write_failure("bench", out, e)
+    print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {out}")
     return 0
+
+
+def _clear_bench_outputs(out: str, quiet: bool) -> str | None:
+    """Remove the :data:`BENCH_OUTPUTS` an earlier run left in ``out`` (other files are left alone); why that
+    failed, or None. Said on stderr unless ``quiet``."""
+    old = sorted({p for pattern in BENCH_OUTPUTS for p in Path(out).glob(pattern) if p.is_file() or p.is_symlink()})
+    for p in old:
+        try:
+            p.unlink()
+        except OSError as e:
+            return f"cannot remove {p.name} of an earlier run: {e.strerror or e}"
+    if old and not quiet:
+        print(f"agnav bench: --out {out}: removed {len(old)} file(s) of an earlier run", file=sys.stderr)
+    return None

@@ -39,6 +39,9 @@ def _pose(text: str) -> tuple[float, float, float]:
 
 
 _DEF = TimedLimits()
+#: Most states --samples prints: 100 000 lines are about 6 MB of text and take a few seconds; more would only
+#: cost memory and time (10 million took more than 3 GB).
+MAX_SAMPLES = 100_000
 _MAX_STEER_DEG = math.degrees(_DEF.max_steer_rad)
 _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
 
@@ -67,9 +70,10 @@ _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
                             "help": f"bottom of the speed band, m/s (default {_DEF.v_min_m_s:g})"}),
         (("--accel",), {"type": positive_float, "default": _DEF.accel_m_s2, "metavar": "M_S2",
                         "help": f"acceleration limit, m/s^2, > 0 (default {_DEF.accel_m_s2:g})"}),
-        (("--samples",), {"type": int_in(2), "default": None, "metavar": "N",
-                          "help": "also print N >= 2 states (t s, x m, y m, yaw deg, speed m/s, steering deg) evenly "
-                                  "spaced from the start to the car at rest on the goal (default: none)"}),
+        (("--samples",), {"type": int_in(2, MAX_SAMPLES), "default": None, "metavar": "N",
+                          "help": f"also print N >= 2 states, at most {MAX_SAMPLES} (t s, x m, y m, yaw deg, speed m/s, "
+                                  "steering deg) evenly spaced from the start to the car at rest on the goal (default: "
+                                  "none)"}),
         (("--json",), {"action": "store_true", "help": "print JSON"}),
     ],
 )
