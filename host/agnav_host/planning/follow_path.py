@@ -278,7 +278,9 @@ class FollowPathPlanner:
         if v_r > 0.0 and self.tracked_moving and self._stand_for_movers(obs, v_r, w_r):
             v_r = 0.0
             self.mover_stops += 1
-        return drive_command(spec, v_r, w_r, v, obs)
+        # the view goes to drive_command only for a stop (the car's roll-out steering): driving, the check
+        # above reaches further than drive_command's braking guard, which would only repeat it
+        return drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
 
     def _stand_for_movers(self, obs: Observation, v_r: float, w_r: float) -> bool:
         """True when driving on along the current arc at ``v_r`` (at least the speed the robot has) meets a
