@@ -12,7 +12,8 @@ and must reach (11, y) with y drawn in 1-5 m, within 90 s. Yard k is the same on
 
 Options: ``--robot ackermann`` puts the ref-003 RC car (0.38 m turning radius, no reverse, 0.435 m/s
 slowest) in the same yards; ``--walkers N`` adds N people pacing across each yard on lines clear of the
-boxes (0.4-1.0 m/s, oblivious of the robot; follow-path then tracks them, ``mover_horizon_s`` 2 s); ``--timed`` gives the goal an arrival time (straight line at
+boxes (0.4-1.0 m/s, oblivious of the robot; the laser planners then track them and let them by,
+``mover_horizon_s`` 2 s, which the timed planner always does); ``--timed`` gives the goal an arrival time (straight line at
 0.6 m/s plus 6 s) and reports the arrival-time error (the run ends on entering the 0.25 m goal
 tolerance, about half a second before the car's centre reaches the goal, so on-time runs show about -0.5 s).
 
@@ -51,6 +52,7 @@ max_speed_m_s = 1.0
 tables = "default"
 ''',
 }
+WALKER_AWARE = ("follow-path", "flb", "him", "vfh", "apf", "pbf")  # --walkers: these get mover_horizon_s 2 s
 ARRIVE_SPEED_M_S = 0.6  # --timed: the goal's arrival time is its straight-line distance at this speed, plus slack
 ARRIVE_SLACK_S = 6.0
 
@@ -104,8 +106,9 @@ closed = true
             r = float(rng.uniform(0.1, 0.5))
             parts.append(f"[[circles]]\nx_m = {x:.2f}\ny_m = {y:.2f}\nradius_m = {r:.2f}\n")
             extent.append(r)
-    if walkers:  # follow-path tracks people only when asked (its tracker's cost per step)
-        parts.append("[meta.planner_params.follow-path]\nmover_horizon_s = 2.0\n")
+    if walkers:  # the planners track people only when asked (the tracker's cost per step); timed always does
+        for name in WALKER_AWARE:
+            parts.append(f"[meta.planner_params.{name}]\nmover_horizon_s = 2.0\n")
     walk = np.random.default_rng(5000 + k)
     for _ in range(walkers):
         # a person pacing across the yard (y = 0.4 .. 5.6 m and back) on a line clear of every obstacle by 0.35 m

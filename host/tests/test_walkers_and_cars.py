@@ -321,3 +321,32 @@ def test_follow_path_lets_a_walker_by_and_does_not_map_its_trail(start_s):
     # without the tracker (the default) the walker's trail walls off its beat in the map and the car is walked into
     r2, _ = _run(walker_crossing(start_s), "follow-path")
     assert r2.end_reason == "collision"
+
+
+def _with_params(toml: str, planner: str, **params: float) -> str:
+    return toml + f"\n[meta.planner_params.{planner}]\n" + "".join(f"{k} = {v}\n" for k, v in params.items())
+
+
+@pytest.mark.parametrize("planner, start_s", [("apf", 0.0), ("vfh", 0.0), ("vfh", 6.0)])
+def test_any_laser_planner_lets_a_walker_by_when_asked(planner, start_s):
+    # the same walker crossing: by default these planners drive into the walker ...
+    r0 = run_scenario(parse_scenario(walker_crossing(start_s), "<t>"), planner, seed=0)
+    assert r0.end_reason == "collision"
+    # ... with mover_horizon_s the registry wraps them in the MoverGuard
+    r = run_scenario(parse_scenario(_with_params(walker_crossing(start_s), planner, mover_horizon_s=2.0), "<t>"), planner, seed=0)
+    assert r.end_reason == "arrived" and float(r.trajectory[:, 6].min()) > 0.15
+
+
+def test_registry_wraps_a_planner_in_the_mover_guard_and_checks_the_horizon():
+    from agnav_host.planning.base import WithMoverGuard
+    from agnav_host.planning.registry import make_planner
+
+    p = make_planner("vfh", CAR_SPEC, {"mover_horizon_s": 1.5})
+    assert isinstance(p, WithMoverGuard) and p.guard.horizon_s == 1.5 and p.name == "vfh"
+    assert not isinstance(make_planner("vfh", CAR_SPEC, {"mover_horizon_s": 0.0}), WithMoverGuard)
+    assert not isinstance(make_planner("follow-path", CAR_SPEC, {"mover_horizon_s": 2.0}), WithMoverGuard)  # its own field
+    for bad in (-1.0, 11.0, "2", True):
+        with pytest.raises(ValueError, match="mover_horizon_s"):
+            make_planner("apf", CAR_SPEC, {"mover_horizon_s": bad})
+    with pytest.raises(ValueError, match="timed"):
+        make_planner("timed", CAR_SPEC, {"mover_horizon_s": 2.0})

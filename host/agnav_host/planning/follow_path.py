@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..perception._tracking import ObstacleTracker, Track, TrackerParams
+from ..perception._tracking import Track
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
-from .base import DeadlineMissed, LocalView, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
+from .base import DeadlineMissed, LocalView, MoverGuard, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
 
 __all__ = ["PathFollowerParams", "PathFollower", "FollowPathParams", "FollowPathPlanner"]
 
@@ -174,7 +174,7 @@ class FollowPathPlanner:
     People walking (``mover_horizon_s`` > 0, off by default for its cost): perception's obstacle tracker
     runs on the scans; returns of a moving track are kept out of the map (a walker's trail would wall off its whole beat), and the robot stands while driving
     on along its arc would meet a moving track within ``mover_horizon_s`` (constant-velocity prediction),
-    unless standing would be met as soon (``_stand_for_movers``)."""
+    unless standing would be met as soon (:class:`~agnav_host.planning.base.MoverGuard`)."""
 
     name = "follow-path"
     uses_sonar = False
@@ -195,10 +195,16 @@ class FollowPathPlanner:
         self._since_plan = math.inf
         self.plan_failures = 0
         self.safety_stops = 0  # steps the last line of defence stopped the robot
-        self.mover_stops = 0  # steps the robot stood for a moving obstacle
         self._n_scans = 0
-        self.tracker = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
-        self.tracked_moving: list[Track] = []
+        self.movers = MoverGuard(self.spec, self.params.mover_horizon_s, self.params.mover_margin_m)
+
+    @property
+    def tracked_moving(self) -> list[Track]:
+        return self.movers.moving
+
+    @property
+    def mover_stops(self) -> int:
+        return self.movers.stops
 
     def _new_grid(self, obs: Observation) -> OccupancyGrid:
         """The map's window: ``grid_size_m`` centred on the robot when the goal lies inside it (a metre from
@@ -235,8 +241,7 @@ class FollowPathPlanner:
         spec, p = self.spec, self.params
         given = obs.extras.get("path")
         v: LocalView | None = None
-        if p.mover_horizon_s > 0.0 and obs.scan is not None and obs.scan.pose is not None:
-            self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, obs.t_s) if tr.moving]
+        self.movers.update(obs)
         if given is not None:
             if self._given is None:
                 self._given = np.asarray(given, dtype=float)
@@ -275,40 +280,9 @@ class FollowPathPlanner:
             if any(arc_blocked(0.0, 0.0, 0.0, k, reach, v.xy, spec.radius_m, 0.0) for k in kappas):
                 v_r = 0.0
                 self.safety_stops += 1
-        if v_r > 0.0 and self.tracked_moving and self._stand_for_movers(obs, v_r, w_r):
+        if self.movers.stand(obs, v_r, w_r):
             v_r = 0.0
-            self.mover_stops += 1
         # the view goes to drive_command only for a stop (the car's roll-out steering): driving, the check
         # above reaches further than drive_command's braking guard, which would only repeat it
         return drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
 
-    def _stand_for_movers(self, obs: Observation, v_r: float, w_r: float) -> bool:
-        """True when driving on along the current arc at ``v_r`` (at least the speed the robot has) meets a
-        tracked moving obstacle, predicted at constant velocity, within ``mover_horizon_s``, and standing
-        here would not be met sooner: a person crossing ahead is let by, one heading for where the robot
-        stands is not waited for."""
-        p, spec = self.params, self.spec
-        ts = np.arange(0.0, p.mover_horizon_s + 1e-9, 0.1)
-        v = max(v_r, abs(obs.speed_m_s))
-        k = w_r / v_r
-        yaw0, off = obs.pose.yaw_rad, spec.footprint_offset_m
-        s = v * ts
-        yaw = yaw0 + k * s
-        if abs(k) < 1e-6:
-            x, y = obs.pose.x_m + s * math.cos(yaw0), obs.pose.y_m + s * math.sin(yaw0)
-        else:
-            x = obs.pose.x_m + (np.sin(yaw) - math.sin(yaw0)) / k
-            y = obs.pose.y_m - (np.cos(yaw) - math.cos(yaw0)) / k
-        gx, gy = x + off * np.cos(yaw), y + off * np.sin(yaw)  # footprint centre driving on
-        hx, hy = gx[0], gy[0]  # ... and standing
-        first_go = first_stand = math.inf
-        for tr in self.tracked_moving:
-            ox, oy = tr.x_m + tr.vx_m_s * ts, tr.y_m + tr.vy_m_s * ts
-            lim = tr.radius_m + spec.radius_m + p.mover_margin_m
-            hit = np.flatnonzero(np.hypot(gx - ox, gy - oy) < lim)
-            if len(hit):
-                first_go = min(first_go, float(ts[hit[0]]))
-            hit = np.flatnonzero(np.hypot(hx - ox, hy - oy) < lim)
-            if len(hit):
-                first_stand = min(first_stand, float(ts[hit[0]]))
-        return first_go < math.inf and first_go <= first_stand

@@ -67,14 +67,29 @@ def make_planner(name: str, spec: RobotSpec | None = None, params: Any = None) -
     """Build the named planner for ``spec`` (defaults: the 0.45 m differential drive of refs 001/002).
 
     ``params`` is that planner's frozen parameter dataclass (``FlbParams``, ``VfhParams``, ...), a
-    dict of its fields (validated by the dataclass), or None for its defaults."""
+    dict of its fields (validated by the dataclass), or None for its defaults. A dict may also hold
+    ``mover_horizon_s`` (s, 0-10) for any planner but ``timed``: people walking are tracked with the laser
+    and let by (:class:`~agnav_host.planning.base.MoverGuard`; follow-path has the field itself)."""
     entry = PLANNERS[canonical_name(name)]
     mod = importlib.import_module(f"{__package__}.{entry.module}")
     cls = getattr(mod, entry.cls)
+    horizon = 0.0
     if isinstance(params, dict):
+        params = dict(params)
+        if "mover_horizon_s" in params and "mover_horizon_s" not in getattr(cls.params_cls, "__dataclass_fields__", {}):
+            # any other planner: people walking through the same MoverGuard, wrapped round it
+            horizon = params.pop("mover_horizon_s")
+            if not isinstance(horizon, (int, float)) or isinstance(horizon, bool) or not 0.0 <= horizon <= 10.0:
+                raise ValueError(f"bad parameters for planner {name!r}: mover_horizon_s must be 0-10 s, got {horizon!r}")
+            if name == "timed" or canonical_name(name) == "timed":
+                raise ValueError("bad parameters for planner 'timed': it always tracks movers (no mover_horizon_s)")
         try:
             params = cls.params_cls(**params)
         except TypeError as e:
             raise ValueError(f"bad parameters for planner {name!r}: {e}") from None
     planner: Planner = cls(spec or RobotSpec(), params)
+    if horizon > 0.0:
+        from .base import WithMoverGuard
+
+        planner = WithMoverGuard(planner, float(horizon))  # type: ignore[assignment]
     return planner
