@@ -336,7 +336,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         except ValueError as e:
             print(f"agnav sim: {e}", file=sys.stderr)
             return 2
-    bad_out = unusable_out_dir(ns.out) or _clear_sim_outputs(ns.out, ns.quiet)
+    bad_out = unusable_out_dir(ns.out) or clear_earlier_outputs("sim", ns.out, SIM_OUTPUTS, ns.quiet)
     if bad_out:
         print(f"agnav sim: --out {ns.out}: {bad_out}", file=sys.stderr)
         return 2
@@ -386,19 +386,22 @@ SIM_OUTPUTS = ("summary.json", "run_info.json", "trajectory.csv", "trajectory.pn
                "link.tlog", "firmware.csv", "link.rrd")
 
 
-def _clear_sim_outputs(out: str, quiet: bool) -> str | None:
-    """Remove the :data:`SIM_OUTPUTS` an earlier run left in ``out`` (other files are left alone); why
-    that failed, or None. Said on stderr unless ``quiet``."""
+def clear_earlier_outputs(command: str, out: str, patterns: tuple[str, ...], quiet: bool) -> str | None:
+    """Remove the files matching ``patterns`` (globs: the files ``command`` writes) that an earlier run left
+    in ``out``; other files are left alone. Why that failed, or None. Said on stderr unless ``quiet``: the
+    names, or their count when there are more than eight."""
     from pathlib import Path
 
-    old = [Path(out) / n for n in SIM_OUTPUTS if (Path(out) / n).is_file() or (Path(out) / n).is_symlink()]
+    old = sorted({p for pat in patterns for p in Path(out).glob(pat) if p.is_file() or p.is_symlink()},
+                 key=lambda p: (patterns.index(next(pat for pat in patterns if p.match(pat))), p.name))
     for p in old:
         try:
             p.unlink()
         except OSError as e:
             return f"cannot remove {p.name} of an earlier run: {e.strerror or e}"
     if old and not quiet:
-        print(f"agnav sim: --out {out}: removed the earlier run's {', '.join(p.name for p in old)}", file=sys.stderr)
+        what = ", ".join(p.name for p in old) if len(old) <= 8 else f"{len(old)} files"
+        print(f"agnav {command}: --out {out}: removed the earlier run's {what}", file=sys.stderr)
     return None
 
 

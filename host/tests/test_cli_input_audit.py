@@ -3,31 +3,15 @@ the command a user typed and what must happen instead of a traceback, a lost run
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 
 import pytest
 
 from agnav_host import cli
+from _cli_helpers import _no_user_config, nowhere  # noqa: F401 (the fixture is autouse)
 
 UNWRITABLE_DIR = "/proc"  # exists, takes no new files (even for root)
 FAST_CAL = ["--settle-s", "0.1", "--hold-s", "0.25", "--max-step-s", "1"]
-
-
-@pytest.fixture(autouse=True)
-def _no_user_config(tmp_path, monkeypatch):
-    """Keep the developer's own ~/.config/agnav out of these tests."""
-    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
-    monkeypatch.delenv("AGNAV_CONFIG", raising=False)
-
-
-def nowhere() -> str:
-    """A device nobody listens on: a command that got as far as connecting would say "could not open"."""
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return f"tcp:127.0.0.1:{port}"
 
 
 # ---- A1: calibrate --plot-dir ---------------------------------------------------------------------------

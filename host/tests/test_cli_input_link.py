@@ -20,28 +20,9 @@ from agnav_host.link.config import ConfigError, HostConfig, load_config, to_toml
 from agnav_host.link.fake import FakeRobot
 from agnav_host.link.tlog import TlogWriter
 from agnav_host.protocol import dialect
+from _cli_helpers import _no_user_config, free_port, nowhere  # noqa: F401 (the fixture is autouse)
 
 UNWRITABLE_DIR = "/proc"  # exists, takes no new files (even for root)
-
-
-@pytest.fixture(autouse=True)
-def _no_user_config(tmp_path, monkeypatch):
-    """Keep the developer's own ~/.config/agnav out of these tests."""
-    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
-    monkeypatch.delenv("AGNAV_CONFIG", raising=False)
-
-
-def free_port() -> int:
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def nowhere() -> str:
-    """A device nobody listens on: a command that got as far as connecting would say "could not open"."""
-    return f"tcp:127.0.0.1:{free_port()}"
 
 
 def usage_error(capsys, argv: list[str]) -> str:

@@ -306,7 +306,7 @@ def test_bench_explicit_out_replaces_an_earlier_runs_tables_and_plots(tmp_path, 
     (out / "notes.md").write_text("mine")
     assert main(["bench", "planners", "--out", str(out), "--scenarios", "canyon", "--planners", "him", "--seeds", "1",
                  "--no-plot"]) == 0
-    assert "removed 6 file(s) of an earlier run" in capsys.readouterr().err
+    assert "removed the earlier run's runs.csv, summary.csv, planners.md" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["notes.md", "planners.md", "runs.csv", "summary.csv"]
     assert "full run" not in (out / "runs.csv").read_text()
 

@@ -21,17 +21,10 @@ from agnav_host.calibration.wizard import Aborted, ConsoleIO, ScriptedIO, Wizard
 from agnav_host.link import AgnavRobot, Endpoint, parse_device
 from agnav_host.link.config import CalibrationConfig
 from agnav_host.link.fake import FakeRobot
+from _cli_helpers import free_port
 
 FAST = dict(settle_s=0.1, hold_s=0.25, max_step_s=1.0, pause_s=0.05)
 FAST_ARGS = ["--settle-s", "0.1", "--hold-s", "0.25", "--max-step-s", "1"]
-
-
-def free_port() -> int:
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()  # nothing listens there now: connecting is refused
-    return port
 
 
 def failing_open(monkeypatch, *errors: BaseException) -> list[str]:

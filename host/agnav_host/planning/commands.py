@@ -14,9 +14,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-from ..cli import positive_int, subcommand, unusable_out_dir
+from ..cli import clear_earlier_outputs, positive_int, subcommand, unusable_out_dir
 
 __all__: list[str] = []
 
@@ -104,7 +103,7 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
               "holds the whole suite's tables", file=sys.stderr)
         return 2
     out = DEFAULT_OUT if ns.out is None else ns.out
-    bad_out = unusable_out_dir(out) or _clear_bench_outputs(out, ns.quiet)
+    bad_out = unusable_out_dir(out) or clear_earlier_outputs("bench", out, BENCH_OUTPUTS, ns.quiet)
     if bad_out:  # before the run, so that a long run is not lost to a typo
         print(f"agnav bench: --out {out}: {bad_out}", file=sys.stderr)
         return 1
@@ -123,16 +122,3 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {out}")
     return 0
 
-
-def _clear_bench_outputs(out: str, quiet: bool) -> str | None:
-    """Remove the :data:`BENCH_OUTPUTS` an earlier run left in ``out`` (other files are left alone); why that
-    failed, or None. Said on stderr unless ``quiet``."""
-    old = sorted({p for pattern in BENCH_OUTPUTS for p in Path(out).glob(pattern) if p.is_file() or p.is_symlink()})
-    for p in old:
-        try:
-            p.unlink()
-        except OSError as e:
-            return f"cannot remove {p.name} of an earlier run: {e.strerror or e}"
-    if old and not quiet:
-        print(f"agnav bench: --out {out}: removed {len(old)} file(s) of an earlier run", file=sys.stderr)
-    return None

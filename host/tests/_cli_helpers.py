@@ -1,0 +1,28 @@
+"""Helpers of the CLI input tests: a free TCP port, a device nobody listens on, and no user config."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def _no_user_config(tmp_path, monkeypatch):
+    """Keep the developer's own ~/.config/agnav out of these tests (autouse where imported)."""
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
+    monkeypatch.delenv("AGNAV_CONFIG", raising=False)
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on (at the moment of asking)."""
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def nowhere() -> str:
+    """A device nobody listens on: a command that got as far as connecting would say "could not open"."""
+    return f"tcp:127.0.0.1:{free_port()}"
