@@ -57,10 +57,11 @@ ARRIVE_SPEED_M_S = 0.6  # --timed: the goal's arrival time is its straight-line 
 ARRIVE_SLACK_S = 6.0
 
 
-def yard_toml(k: int, robot: str = "diff", walkers: int = 0, timed: bool = False) -> str:
+def yard_toml(k: int, robot: str = "diff", walkers: int = 0, timed: bool = False, mover_horizon_s: float = 2.0) -> str:
     """Scenario TOML of yard ``k``: ``robot`` one of ROBOTS; ``walkers`` people crossing the yard on
     looped paths (drawn from their own seed, so the boxes and posts stay those of yard ``k``); ``timed``
-    gives the goal an arrival time (ARRIVE_SPEED_M_S, ARRIVE_SLACK_S)."""
+    gives the goal an arrival time (ARRIVE_SPEED_M_S, ARRIVE_SLACK_S); with walkers the WALKER_AWARE planners get
+    ``mover_horizon_s`` (0: not)."""
     rng = np.random.default_rng(1000 + k)
     gy = float(rng.uniform(1.0, 5.0))
     arrival = f"arrival_s = {np.hypot(11.0 - 0.5, gy - 3.0) / ARRIVE_SPEED_M_S + ARRIVE_SLACK_S:.1f}\n" if timed else ""
@@ -106,9 +107,9 @@ closed = true
             r = float(rng.uniform(0.1, 0.5))
             parts.append(f"[[circles]]\nx_m = {x:.2f}\ny_m = {y:.2f}\nradius_m = {r:.2f}\n")
             extent.append(r)
-    if walkers:  # the planners track people only when asked (the tracker's cost per step); timed always does
+    if walkers and mover_horizon_s > 0:  # the planners track people only when asked (the tracker's cost); timed always does
         for name in WALKER_AWARE:
-            parts.append(f"[meta.planner_params.{name}]\nmover_horizon_s = 2.0\n")
+            parts.append(f"[meta.planner_params.{name}]\nmover_horizon_s = {mover_horizon_s}\n")
     walk = np.random.default_rng(5000 + k)
     for _ in range(walkers):
         # a person pacing across the yard (y = 0.4 .. 5.6 m and back) on a line clear of every obstacle by 0.35 m
@@ -125,16 +126,16 @@ closed = true
 STANDING_M_S = 0.1  # a contact below this speed is the robot hit standing (ref 001's passive safety holds)
 
 
-def run_one(job: tuple[int, str, str, int, bool]) -> tuple[int, str, str, float, float]:
+def run_one(job: tuple[int, str, str, int, bool, float]) -> tuple[int, str, str, float, float]:
     """(yard, planner, end reason or error, smallest clearance m, arrival-time error s or nan) of one run.
     A collision's end reason is "collision" while the robot moved at the first contact, "hit standing"
     when it was (nearly) at rest: a walker walked into it."""
     from agnav_host.sim.runner import run_scenario
     from agnav_host.sim.scenario import parse_scenario
 
-    k, planner, robot, walkers, timed = job
+    k, planner, robot, walkers, timed, horizon = job
     try:
-        sc = parse_scenario(yard_toml(k, robot, walkers, timed), f"<yard {k}>")
+        sc = parse_scenario(yard_toml(k, robot, walkers, timed, horizon), f"<yard {k}>")
         r = run_scenario(sc, planner, seed=0)
         late = r.metrics.arrival_time_error_s
         end = r.end_reason
@@ -166,10 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--walkers", type=int, default=0, help="people pacing across each yard (default 0)")
     ap.add_argument("--timed", action="store_true",
                     help=f"give the goal an arrival time (straight line at {ARRIVE_SPEED_M_S} m/s + {ARRIVE_SLACK_S:.0f} s)")
+    ap.add_argument("--mover-horizon", type=float, default=2.0, metavar="S",
+                    help="with --walkers: mover_horizon_s given to the laser planners (default 2; 0: they do not track people)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ns = ap.parse_args(argv)
-    if ns.yards < 1 or ns.jobs < 1 or ns.first < 0 or ns.walkers < 0:
-        ap.error("--yards and --jobs must be >= 1, --first and --walkers >= 0")
+    if ns.yards < 1 or ns.jobs < 1 or ns.first < 0 or ns.walkers < 0 or not 0.0 <= ns.mover_horizon <= 10.0:
+        ap.error("--yards and --jobs must be >= 1, --first and --walkers >= 0, --mover-horizon 0-10 s")
     if ns.planners is None:
         ns.planners = ("subsumption,flb,him,vfh,apf,pbf,follow-path" if ns.robot == "diff"
                        else "flb,him,vfh,apf,pbf,follow-path,timed")
@@ -180,10 +183,10 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         ap.error(f"unknown planner(s) {', '.join(unknown)}; known: {', '.join(planner_names())}")
     t0 = time.time()
-    jobs = [(k, p, ns.robot, ns.walkers, ns.timed) for p in planners for k in range(ns.first, ns.first + ns.yards)]
+    jobs = [(k, p, ns.robot, ns.walkers, ns.timed, ns.mover_horizon) for p in planners for k in range(ns.first, ns.first + ns.yards)]
     with ProcessPoolExecutor(ns.jobs) as ex:
         res = list(ex.map(run_one, jobs))
-    what = f"{ns.robot} robot" + (f", {ns.walkers} walker(s)" if ns.walkers else "") + (", timed goal" if ns.timed else "")
+    what = f"{ns.robot} robot" + (f", {ns.walkers} walker(s), mover_horizon_s {ns.mover_horizon:g}" if ns.walkers else "") + (", timed goal" if ns.timed else "")
     print(f"# {ns.yards} random cluttered yards {ns.first}-{ns.first + ns.yards - 1} (bench/bench_yards.py), {what}, {len(res)} runs\n")
     print("| planner | arrived | timeout | collision (moving) | hit standing | other | smallest clearance m | "
           "arrival error s (median, worst) |")
@@ -199,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     bad = [r for r in res if r[2] not in ("arrived", "timeout")]
     if bad:
         print("\nruns that touched something or failed (yard k: `python -c 'from bench_yards import yard_toml; "
-              "print(yard_toml(k, ROBOT, WALKERS, TIMED))'`):")
+              "print(yard_toml(k, ROBOT, WALKERS, TIMED, HORIZON))'`):")
         for k, p, end, clear, _late in bad:
             print(f"- yard {k}, {p}: {end}, clearance {clear:.3f} m")
     print(f"\nwall time {time.time() - t0:.0f} s")
