@@ -154,3 +154,54 @@ def test_a_calibration_step_must_outlast_its_settling():
     cfg.calibration.settle_s, cfg.calibration.max_step_s = 2.0, 1.5
     with pytest.raises(ConfigError, match=r"\[calibration\] settle_s: must be < max_step_s"):
         validate_config(cfg)
+
+
+def test_replay_reads_the_log_once_and_settles_the_senders_at_the_end(tmp_path, monkeypatch):
+    """One pass over the file (it was read twice: once for the ground stations' ids); a ground station
+    whose first heartbeat comes after its first frames still counts as the sender of all of them, and its
+    status texts are not the robot's."""
+    import agnav_host.link.replay as R
+    import agnav_host.link.tlog as T
+
+    d = dialect()
+    robot = d.MAVLink(None, srcSystem=1, srcComponent=1)
+    host = d.MAVLink(None, srcSystem=200, srcComponent=190)
+    log = tmp_path / "late_gcs.tlog"
+    with TlogWriter(log) as w:
+        w.write(host.statustext_encode(6, b"host says hi").pack(host), 1e9)
+        w.write(host.statustext_encode(6, b"host again").pack(host), 1e9 + 0.1)
+        for i in range(5):
+            w.write(robot.statustext_encode(6, f"robot {i}".encode()).pack(robot), 1e9 + 0.2 + i)
+        w.write(host.heartbeat_encode(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(host), 1e9 + 6)
+    reads = []
+    real = T.read_tlog
+
+    def counting(path, progress=None):  # type: ignore[no-untyped-def]
+        reads.append(path)
+        return real(path, progress)
+
+    monkeypatch.setattr(T, "read_tlog", counting)  # every reader of the module, host_systems too
+    monkeypatch.setattr(R, "read_tlog", counting)
+    s = R.summarize_tlog(log)
+    assert len(reads) == 1
+    assert sum(s.tx_msgs.values()) == 3 and s.rx_msgs["STATUSTEXT"] == 5
+    assert [t for _, t in s.statustexts] == [f"robot {i}" for i in range(5)]
+
+
+def test_replay_of_a_large_log_shows_its_progress(tmp_path, monkeypatch, capsys):
+    from agnav_host import cli
+    import agnav_host.link.commands as C
+    import agnav_host.link.tlog as T
+
+    d = dialect()
+    robot = d.MAVLink(None, srcSystem=1, srcComponent=1)
+    log = tmp_path / "big.tlog"
+    _odometry_log(log, [1.79e9 + 0.1 * i for i in range(300)], robot)
+    monkeypatch.setattr(C, "REPLAY_PROGRESS_BYTES", 1000)
+    monkeypatch.setattr(T, "PROGRESS_EVERY", 50)
+    assert cli.main(["replay", str(log)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\rreading ") >= 6 and err.rstrip().endswith("(100 %)")
+    monkeypatch.setattr(C, "REPLAY_PROGRESS_BYTES", 10**9)  # a small log: nothing on stderr
+    assert cli.main(["replay", str(log)]) == 0
+    assert capsys.readouterr().err == ""

@@ -19,7 +19,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand
 from .config import CalibrationConfig, LinkConfig
@@ -648,6 +648,27 @@ subcommand("flash", help="build and upload the firmware (pio run -e ENV -t uploa
 #: replay refuses a log (exit 2, after its summary) when more than this share of it is not MAVLink frames
 MAX_UNDECODED = 0.5
 
+#: a log at least this large gets a progress line on stderr while it is read (about 1 s of reading)
+REPLAY_PROGRESS_BYTES = 1_000_000
+
+
+def _replay_progress(path: str) -> Callable[[int, int], None] | None:
+    """A progress line on stderr for a log of REPLAY_PROGRESS_BYTES or more (None: a small log, or not a file)."""
+    try:
+        size = Path(path).stat().st_size
+    except OSError:
+        return None
+    if size < REPLAY_PROGRESS_BYTES:
+        return None
+
+    def show(done: int, total: int) -> None:
+        pct = 100.0 * done / max(total, 1)
+        print(f"\rreading {path}: {done / 1e6:.1f} of {total / 1e6:.1f} MB ({pct:3.0f} %)", end="" if done < total else "\n",
+              file=sys.stderr, flush=True)
+
+    return show
+
+
 def _cmd_replay(ns: argparse.Namespace) -> int:
     from .replay import TlogError, summarize_tlog
 
@@ -656,7 +677,7 @@ def _cmd_replay(ns: argparse.Namespace) -> int:
         if path and Path(path).suffix.lower() not in suffixes:
             raise ValueError(f"{opt} {path}: the file name must end in {' or '.join(suffixes)}")
     try:
-        s = summarize_tlog(ns.log)
+        s = summarize_tlog(ns.log, progress=_replay_progress(ns.log))
     except TlogError as e:
         _err("replay", str(e))
         return 2

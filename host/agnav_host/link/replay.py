@@ -7,9 +7,10 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from .state import LAYER_NAMES, REASON_NAMES
-from .tlog import LogClock, host_systems, read_tlog
+from .tlog import MAV_TYPE_GCS, LogClock, read_tlog
 
 __all__ = ["TlogSummary", "TlogError", "summarize_tlog"]
 
@@ -93,29 +94,36 @@ def _check_readable(path: str | Path) -> None:
         raise TlogError(f"{p}: cannot read: {e.strerror or e}") from None
 
 
-def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSummary:
-    """Summary of one .tlog; :class:`TlogError` when ``path`` is not a readable file. The host's frames
-    (``host_sysid``; by default the systems that sent ground-station heartbeats) count as sent. Times run
-    from the first frame, with any break in the stamps left out (:class:`~.tlog.LogClock`)."""
+def summarize_tlog(path: str | Path, host_sysid: int | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> TlogSummary:
+    """Summary of one .tlog in one pass over it; :class:`TlogError` when ``path`` is not a readable file.
+    The host's frames (``host_sysid``; by default the systems that sent ground-station heartbeats anywhere
+    in the log) count as sent. Times run from the first frame, with any break in the stamps left out
+    (:class:`~.tlog.LogClock`). ``progress(bytes read, file bytes)``: see :func:`~.tlog.read_tlog`."""
     _check_readable(path)
-    hosts = {host_sysid} if host_sysid is not None else host_systems(path)
     s = TlogSummary(str(path), file_bytes=Path(path).stat().st_size)
     frame_bytes = 0  # every frame with its 8-byte time stamp: the rest of the file was skipped by the reader
     clock = LogClock()
     last_layer: tuple[int, int] | None = None
     last_layer_t = 0.0
     prev_xy: tuple[float, float] | None = None
-    for t, m in read_tlog(path):
+    # who sent what is settled at the end (a ground station's heartbeat may come after its first frames)
+    by_sender: dict[int, Counter[str]] = {}
+    bytes_by_sender: Counter[int] = Counter()
+    gcs: set[int] = set()
+    texts: list[tuple[float, int, str]] = []
+    for t, m in read_tlog(path, progress):
         rel = clock.tick(t)
         typ = m.get_type()
         n = len(m.get_msgbuf())
         frame_bytes += n + 8
-        if m.get_srcSystem() in hosts:
-            s.tx_msgs[typ] += 1
-            s.tx_bytes += n
+        src = m.get_srcSystem()
+        by_sender.setdefault(src, Counter())[typ] += 1
+        bytes_by_sender[src] += n
+        if typ == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
+            gcs.add(src)
+        if src == host_sysid or src in gcs:
             continue
-        s.rx_msgs[typ] += 1
-        s.rx_bytes += n
         if typ == "AGNAV_BEHAVIOUR_STATUS":
             key = (m.active_layer, m.reason)
             name = LAYER_NAMES.get(m.active_layer, str(m.active_layer))
@@ -136,7 +144,16 @@ def summarize_tlog(path: str | Path, host_sysid: int | None = None) -> TlogSumma
             s.poses.append((rel, x, y, yaw))
         elif typ == "STATUSTEXT":
             txt = m.text if isinstance(m.text, str) else m.text.decode("ascii", "replace")
-            s.statustexts.append((rel, txt.split("\x00", 1)[0]))
+            texts.append((rel, src, txt.split("\x00", 1)[0]))
+    hosts = {host_sysid} if host_sysid is not None else (gcs or {255})
+    for src, counts in by_sender.items():
+        if src in hosts:
+            s.tx_msgs.update(counts)
+            s.tx_bytes += bytes_by_sender[src]
+        else:
+            s.rx_msgs.update(counts)
+            s.rx_bytes += bytes_by_sender[src]
+    s.statustexts = [(rel, txt) for rel, src, txt in texts if src not in hosts]
     s.duration_s = clock.rel_s
     s.breaks = clock.breaks
     s.undecoded_bytes = max(0, s.file_bytes - frame_bytes)

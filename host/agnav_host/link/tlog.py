@@ -10,7 +10,7 @@ import struct
 import threading
 import time
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 __all__ = ["TlogWriter", "read_tlog"]
 
@@ -80,9 +80,14 @@ class TlogWriter:
         self.close()
 
 
-def read_tlog(path: str | Path) -> Iterator[tuple[float, Any]]:
+#: read_tlog reports its progress every this many frames
+PROGRESS_EVERY = 4096
+
+
+def read_tlog(path: str | Path, progress: Callable[[int, int], None] | None = None) -> Iterator[tuple[float, Any]]:
     """Yield (unix time s, decoded message) from a tlog, with pymavlink's own reader
-    (``mavutil.mavlogfile``) fitted with the AgNav dialect so AgNav messages decode."""
+    (``mavutil.mavlogfile``) fitted with the AgNav dialect so AgNav messages decode.
+    ``progress(bytes read, file bytes)`` is called every PROGRESS_EVERY frames and once at the end."""
     from pymavlink import mavutil
 
     from ..protocol import dialect
@@ -93,14 +98,21 @@ def read_tlog(path: str | Path) -> Iterator[tuple[float, Any]]:
     log.mav.robust_parsing = True
     log.first_byte = False
     log.WIRE_PROTOCOL_VERSION = "2.0"
+    total = Path(path).stat().st_size if progress is not None else 0
+    n = 0
     try:
         while True:
             m = log.recv_msg()
             if m is None:
                 break
+            n += 1
+            if progress is not None and n % PROGRESS_EVERY == 0:
+                progress(log.f.tell(), total)
             if m.get_type() == "BAD_DATA":
                 continue
             yield float(getattr(m, "_timestamp", 0.0)), m
+        if progress is not None:
+            progress(total, total)
     finally:
         log.close()
 
