@@ -316,3 +316,14 @@ def test_bench_explicit_out_replaces_an_earlier_runs_tables_and_plots(tmp_path, 
 def test_plan_samples_has_an_upper_bound(val, capsys):
     assert _exit_code(["plan", "--start", "0,0,0", "--goal", "3,5,90", "--samples", val]) == 2
     assert f"argument --samples: must be 2..100000, got '{val}'" in capsys.readouterr().err
+
+
+def test_bench_says_at_once_what_is_under_way(tmp_path, no_run, capsys):
+    """The progress bar moves only when a run ends (a minute or more on a slow planner): a line first."""
+    out = tmp_path / "o"
+    assert main(["bench", "planners", "--out", str(out), "--scenarios", "canyon", "--planners", "him,flb", "--seeds", "2",
+                 "--jobs", "1", "--no-plot"]) == 0
+    assert f"agnav bench: 4 runs on 1 worker(s), results to {out}" in capsys.readouterr().err
+    assert main(["bench", "planners", "--out", str(out), "--scenarios", "canyon", "--planners", "him", "--seeds", "1",
+                 "--quiet", "--no-plot"]) == 0
+    assert "runs on" not in capsys.readouterr().err

@@ -63,7 +63,7 @@ def _cmd_planners(ns: argparse.Namespace) -> int:
 def _cmd_bench(ns: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from .bench import SUITE, progress_bar, run_suite, write_report
+    from .bench import SUITE, jobs_of, progress_bar, run_suite, write_report
 
     suite = list(SUITE)
     for opt, value in (("--scenarios", ns.scenarios), ("--planners", ns.planners)):
@@ -107,6 +107,11 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     if bad_out:  # before the run, so that a long run is not lost to a typo
         print(f"agnav bench: --out {out}: {bad_out}", file=sys.stderr)
         return 1
+    if not ns.quiet:  # the bar moves only when a run ends: say at once what is under way
+        import os
+
+        print(f"agnav bench: {len(jobs_of(suite))} runs on {ns.jobs or os.cpu_count() or 1} worker(s), results to {out}",
+              file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)
     wall = time.perf_counter() - t0
