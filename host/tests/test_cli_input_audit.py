@@ -420,3 +420,17 @@ def test_sil_tlog_missing_folders_are_made(tmp_path, capsys, no_serve):
     t = tmp_path / "new" / "sub" / "x.tlog"
     assert cli.main(["sil", "--tlog", str(t), "--duration", "1", "--tcp", "tcp:127.0.0.1:0"]) == 0
     assert no_serve == [str(t)] and t.parent.is_dir()
+
+
+@pytest.mark.parametrize("text, line, what", [
+    ('# host config\n[link]\ndevice = "tcp:127.0.0.1:5760"\n\nheartbeat_hz = nan\n', 5, "[link] heartbeat_hz: must be a finite"),
+    ('[link]\ndevice = "tcp:x:1"\n[run]\nmax_speed_m_s = 0.5\nbogus = 3\n', 5, "[run] unknown key 'bogus'"),
+    ('[link]\n[weird]\na = 1\n', 2, "unknown section [weird]"),
+    ('[run]\nmax_speed_m_s = "fast"\n', 2, "[run] max_speed_m_s: must be a number"),
+])
+def test_b9_config_value_errors_name_the_line(tmp_path, capsys, text, line, what):
+    cfg = tmp_path / "agnav.toml"
+    cfg.write_text(text)
+    assert cli.main(["config", "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert f"{cfg}:{line}: {what}" in err and "Traceback" not in err

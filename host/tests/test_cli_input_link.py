@@ -153,7 +153,12 @@ def test_config_values_checked_with_the_file_named(capsys, tmp_path, body, expec
     p = tmp_path / "host.toml"
     p.write_text(body + "\n")
     assert cli.main(["config", "--config", str(p)]) == 2
-    assert f"agnav config: {p}: {expect}" in capsys.readouterr().err
+    # the file, the line of the key the message names, then the message
+    rest = expect.split("] ", 1)[1]
+    key = rest.split("'")[1] if rest.startswith("unknown key") else expect[1:].split("]")[0] if rest.startswith("must be a table") \
+        else rest.split(":")[0]
+    line = next(i for i, t in enumerate(body.splitlines(), 1) if t.split("=")[0].strip() == key)
+    assert f"agnav config: {p}:{line}: {expect}" in capsys.readouterr().err
     with pytest.raises(ConfigError, match=str(p)):
         load_config(p)
 
@@ -163,7 +168,7 @@ def test_run_with_bad_run_config_fails_before_connecting(capsys, tmp_path):
     p.write_text("[run]\ngoal_tolerance_m = -3\nstatus_hz = 0\n")
     assert cli.main(["run", "--device", nowhere(), "--goal", "1,1", "--config", str(p), "--no-tlog"]) == 2
     err = capsys.readouterr().err
-    assert f"{p}: [run]" in err and "could not open" not in err and "ZeroDivision" not in err
+    assert f"{p}:3: [run] status_hz" in err and "could not open" not in err and "ZeroDivision" not in err
 
 
 def test_config_path_that_is_a_directory(capsys, tmp_path):

@@ -29,7 +29,11 @@ SECTIONS = ("link", "run", "calibration", "ardupilot", "viz")
 
 
 class ConfigError(ValueError):
-    pass
+    """A bad host config; ``where`` is the (section, key) it is about, for the line in the file."""
+
+    def __init__(self, message: str, where: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.where = where
 
 
 @dataclass
@@ -118,20 +122,20 @@ def _fill(obj: Any, table: dict[str, Any], section: str) -> None:
     fields = {f.name: f for f in dataclasses.fields(obj)}
     for k, v in table.items():
         if k not in fields:
-            raise ConfigError(f"[{section}] unknown key {k!r}; known: {', '.join(fields)}")
+            raise ConfigError(f"[{section}] unknown key {k!r}; known: {', '.join(fields)}", (section, k))
         cur = getattr(obj, k)
         if isinstance(cur, bool):
             if not isinstance(v, bool):
-                raise ConfigError(f"[{section}] {k}: must be true or false, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be true or false, got {v!r}", (section, k))
         elif isinstance(cur, int):
             if isinstance(v, bool) or not isinstance(v, int):
-                raise ConfigError(f"[{section}] {k}: must be an integer, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be an integer, got {v!r}", (section, k))
         elif isinstance(cur, float):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ConfigError(f"[{section}] {k}: must be a number, got {v!r}")
+                raise ConfigError(f"[{section}] {k}: must be a number, got {v!r}", (section, k))
             v = float(v)
         elif isinstance(cur, str) and not isinstance(v, str):
-            raise ConfigError(f"[{section}] {k}: must be a string, got {v!r}")
+            raise ConfigError(f"[{section}] {k}: must be a string, got {v!r}", (section, k))
         setattr(obj, k, v)
 
 
@@ -231,18 +235,19 @@ def validate_config(cfg: HostConfig) -> None:
         for key, check in rules.items():
             why = check(getattr(obj, key))
             if why:
-                raise ConfigError(f"[{section}] {key}: {why}")
+                raise ConfigError(f"[{section}] {key}: {why}", (section, key))
     for section, lo, hi in ORDERED_PAIRS:
         obj = getattr(cfg, section)
         if getattr(obj, lo) >= getattr(obj, hi):
-            raise ConfigError(f"[{section}] {lo}: must be < {hi} ({getattr(obj, lo)} >= {getattr(obj, hi)})")
+            raise ConfigError(f"[{section}] {lo}: must be < {hi} ({getattr(obj, lo)} >= {getattr(obj, hi)})", (section, lo))
     c = cfg.calibration
     if not c.steer_pwm_min <= c.steer_neutral_pwm <= c.steer_pwm_max:
         raise ConfigError(f"[calibration] steer_neutral_pwm: must lie in steer_pwm_min..steer_pwm_max "
-                          f"({c.steer_pwm_min}..{c.steer_pwm_max}), got {c.steer_neutral_pwm}")
+                          f"({c.steer_pwm_min}..{c.steer_pwm_max}), got {c.steer_neutral_pwm}", ("calibration", "steer_neutral_pwm"))
     a = cfg.ardupilot
     if a.steer_channel == a.throttle_channel:
-        raise ConfigError(f"[ardupilot] throttle_channel: must differ from steer_channel ({a.steer_channel})")
+        raise ConfigError(f"[ardupilot] throttle_channel: must differ from steer_channel ({a.steer_channel})",
+                          ("ardupilot", "throttle_channel"))
 
 
 def load_config(path: str | Path | None = None) -> HostConfig:
@@ -257,7 +262,8 @@ def load_config(path: str | Path | None = None) -> HostConfig:
             raise ConfigError(f"config file {p} not found")
         return cfg
     try:
-        data = tomllib.loads(p.read_text())
+        text = p.read_text()
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{p}: {e}") from None
     except (OSError, UnicodeDecodeError) as e:
@@ -265,14 +271,17 @@ def load_config(path: str | Path | None = None) -> HostConfig:
     try:
         for section, table in data.items():
             if section not in SECTIONS:
-                raise ConfigError(f"unknown section [{section}]; known: {', '.join(f'[{s}]' for s in SECTIONS)}")
+                raise ConfigError(f"unknown section [{section}]; known: {', '.join(f'[{s}]' for s in SECTIONS)}", (section,))
             if not isinstance(table, dict):
                 raise ConfigError(f"[{section}] must be a table (a [{section}] header with key = value lines), "
-                                  f"got {section} = {table!r}")
+                                  f"got {section} = {table!r}", (section,))
             _fill(getattr(cfg, section), table, section)
         validate_config(cfg)
     except ConfigError as e:
-        raise ConfigError(f"{p}: {e}") from None
+        from ..sim.scenario import locate_line
+
+        line = locate_line(text, e.where) if e.where else None
+        raise ConfigError(f"{p}:{line}: {e}" if line else f"{p}: {e}", e.where) from None
     cfg.source = str(p)
     return cfg
 
