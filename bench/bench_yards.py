@@ -37,7 +37,7 @@ import numpy as np
 ROBOTS = {
     "diff": '''[robot]
 model = "diff_drive"
-start = {{ x_m = 0.5, y_m = 3.0, yaw_deg = 0.0 }}
+start = { x_m = 0.5, y_m = 3.0, yaw_deg = 0.0 }
 radius_m = 0.225
 max_speed_m_s = 0.5
 ''',
@@ -45,7 +45,7 @@ max_speed_m_s = 0.5
     # through its PWM tables), controller and car on the same fits
     "ackermann": '''[robot]
 model = "ackermann"
-start = {{ x_m = 0.5, y_m = 3.0, yaw_deg = 0.0 }}
+start = { x_m = 0.5, y_m = 3.0, yaw_deg = 0.0 }
 max_speed_m_s = 1.0
 
 [robot.calib]
@@ -72,7 +72,7 @@ duration_s = 90.0
 dt_s = 0.02
 control_hz = 15.0
 
-{ROBOTS[robot].format()}
+{ROBOTS[robot]}
 [laser]
 model = "tim561"
 mount = {{ x_m = 0.15, y_m = 0.0, yaw_deg = 0.0 }}

@@ -392,8 +392,9 @@ def clear_earlier_outputs(command: str, out: str, patterns: tuple[str, ...], qui
     names, or their count when there are more than eight."""
     from pathlib import Path
 
-    old = sorted({p for pat in patterns for p in Path(out).glob(pat) if p.is_file() or p.is_symlink()},
-                 key=lambda p: (patterns.index(next(pat for pat in patterns if p.match(pat))), p.name))
+    old: list[Path] = []  # in the order of ``patterns``, then by name
+    for pat in patterns:
+        old += [p for p in sorted(Path(out).glob(pat)) if (p.is_file() or p.is_symlink()) and p not in old]
     for p in old:
         try:
             p.unlink()

@@ -9,6 +9,7 @@ with the ref-003 RC car (bench/bench_yards.py --robot ackermann [--walkers 2 --t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -39,16 +40,22 @@ closed = true
 '''
 
 
+def car_yard(name: str, description: str, duration_s: float, y0: float) -> str:
+    """The scenario header of these tests: the RC car at (0.5, ``y0``) heading along x in a walled 12 x 6 m
+    yard, 0.02 s physics steps, planner at 15 Hz; goals and obstacles follow."""
+    return f'''[scenario]
+name = "{name}"
+description = "{description}"
+duration_s = {duration_s}
+dt_s = 0.02
+control_hz = 15.0
+{CAR.format(y0=y0)}'''
+
+
 def walker_crossing(start_s: float) -> str:
     """The car on a timed straight run along y = 2 m; a person pacing across it at x = 8.68 m, 0.99 m/s,
     setting off at ``start_s``."""
-    return f'''[scenario]
-name = "walker_crossing"
-description = "RC car on a timed goal across a walker's beat"
-duration_s = 40.0
-dt_s = 0.02
-control_hz = 15.0
-{CAR.format(y0=2.0)}
+    return f'''{car_yard("walker_crossing", "RC car on a timed goal across a walker's beat", 40.0, 2.0)}
 [[goals]]
 x_m = 11.0
 y_m = 2.0
@@ -69,8 +76,6 @@ def _run(toml: str, planner: str, **changes: object):
     ctl = _make_controller(sc, planner)
     for name, value in changes.items():  # switch one part of a fix off
         obj, attr = name.split("__")
-        import dataclasses
-
         setattr(ctl, obj, dataclasses.replace(getattr(ctl, obj), **{attr: value}))
     return run_scenario(sc, planner, seed=0, controller=ctl), ctl
 
@@ -139,13 +144,7 @@ def test_a_stop_for_a_dwell_holds_the_car_unless_it_is_well_behind():
 def test_a_passive_stop_still_counts_walkers_while_a_static_blockage_is_searched():
     """The car deviating round a box must still stop for a walker; before, the static search (several
     control steps) kept the mover check off and the car drove into the walker at 0.28 m/s."""
-    toml = f'''[scenario]
-name = "box_and_walkers"
-description = "timed run past boxes with two people pacing across"
-duration_s = 60.0
-dt_s = 0.02
-control_hz = 15.0
-{CAR.format(y0=3.0)}
+    toml = f'''{car_yard("box_and_walkers", "timed run past boxes with two people pacing across", 60.0, 3.0)}
 [[goals]]
 x_m = 11.0
 y_m = 4.26
@@ -254,13 +253,7 @@ def test_braking_guard_reach_grows_with_speed_on_a_differential_drive():
 
 
 def test_fuzzy_planner_on_the_rc_car_does_not_run_into_a_thin_post():
-    toml = f'''[scenario]
-name = "post_ahead"
-description = "RC car, a thin post 2 m ahead"
-duration_s = 60.0
-dt_s = 0.02
-control_hz = 15.0
-{CAR.format(y0=3.0)}
+    toml = f'''{car_yard("post_ahead", "RC car, a thin post 2 m ahead", 60.0, 3.0)}
 [sonar]
 enabled = true
 

@@ -363,8 +363,7 @@ static uint32_t uabs32(int32_t v) { return v < 0 ? 0u - (uint32_t)v : (uint32_t)
  * on the AVR the 64-bit arithmetic inside the control tick cost ~0.6 KB of flash. */
 __attribute__((noinline)) static int32_t travel_um_wide(enc_loop_t *w, int32_t dc)
 {
-    uint32_t a = dc < 0 ? 0u - (uint32_t)dc : (uint32_t)dc;
-    uint64_t p = (uint64_t)a * w->um_q8_per_count; /* unsigned 32 x 32 -> 64 */
+    uint64_t p = (uint64_t)uabs32(dc) * w->um_q8_per_count; /* unsigned 32 x 32 -> 64 */
     uint32_t lo = (uint32_t)p;
     uint32_t hi = (uint32_t)(p >> 32);
     if (dc < 0) {

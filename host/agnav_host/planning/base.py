@@ -45,6 +45,8 @@ __all__ = [
     "free_distances_m",
     "clip",
     "arc_blocked",
+    "arc_footprint_centres",
+    "way_blocked",
 ]
 
 
@@ -175,19 +177,30 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
     return DriveCommand(v, 0.0, steer)
 
 
+def _stopping_reach_m(spec: RobotSpec, v_m_s: float) -> float:
+    """How far along its arc the braking guard looks at ``v_m_s``: one control period plus the drive's lag
+    of travel, plus BRAKE_MARGIN_M."""
+    return BRAKE_MARGIN_M + v_m_s * (spec.control_dt_s + spec.stop_lag_s)
+
+
+def _from_reference_point(spec: RobotSpec, view: "LocalView") -> FloatArray:
+    """The view's points (centred on the footprint) in the frame of the robot's reference point."""
+    off = spec.footprint_offset_m
+    return view.xy + np.array([off, 0.0]) if off else view.xy
+
+
 def _roll_out_steer(spec: RobotSpec, view: "LocalView", obs: Observation, steer: float) -> float:
     """A car told to stop still rolls (its speed lag) along whatever its wheels point to: the steering
     asked for when that roll-out is clear, else the first clear of the angle it is on, straight ahead and
     full lock either way; the angle asked for when none is."""
     if len(view.xy) == 0:
         return steer
-    reach = BRAKE_MARGIN_M + obs.speed_m_s * (spec.control_dt_s + spec.stop_lag_s)
-    off = spec.footprint_offset_m
-    pts = view.xy + np.array([off, 0.0]) if off else view.xy
+    reach = _stopping_reach_m(spec, obs.speed_m_s)
+    pts = _from_reference_point(spec, view)
     now = math.atan(spec.wheelbase_m * obs.yaw_rate_rad_s / obs.speed_m_s)
     for cand in (steer, now, 0.0, spec.max_steer_rad, -spec.max_steer_rad):
         cand = clip(cand, -spec.max_steer_rad, spec.max_steer_rad)
-        if not arc_blocked(0.0, 0.0, 0.0, math.tan(cand) / spec.wheelbase_m, reach, pts, spec.radius_m, off):
+        if not arc_blocked(0.0, 0.0, 0.0, math.tan(cand) / spec.wheelbase_m, reach, pts, spec.radius_m, spec.footprint_offset_m):
             return cand
     return steer
 
@@ -198,14 +211,8 @@ def _brake_now(spec: RobotSpec, view: "LocalView", v_m_s: float, kappa_1_m: floa
     if len(view.xy) == 0:
         return False
     v = v_m_s if obs is None else max(v_m_s, abs(obs.speed_m_s))
-    reach = BRAKE_MARGIN_M + v * (spec.control_dt_s + spec.stop_lag_s)
-    off = spec.footprint_offset_m
-    pts = view.xy + np.array([off, 0.0]) if off else view.xy  # the view is centred on the footprint
-    if arc_blocked(0.0, 0.0, 0.0, kappa_1_m, reach, pts, spec.radius_m, off):
-        return True
-    if obs is None or abs(obs.speed_m_s) <= 0.1:
-        return False
-    return arc_blocked(0.0, 0.0, 0.0, obs.yaw_rate_rad_s / obs.speed_m_s, reach, pts, spec.radius_m, off)
+    return way_blocked(_from_reference_point(spec, view), kappa_1_m, _stopping_reach_m(spec, v), spec.radius_m,
+                       spec.footprint_offset_m, obs)
 
 
 # ---- geometry helpers --------------------------------------------------------------------------
@@ -357,14 +364,7 @@ def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length
     if len(points_xy) == 0 or length_m < 0.0:
         return False
     s = np.append(np.arange(0.0, length_m, ds_m), length_m)  # the end itself too
-    if abs(kappa_1_m) < 1e-6:
-        yaw = np.full(len(s), yaw_rad)
-        x, y = x_m + s * math.cos(yaw_rad), y_m + s * math.sin(yaw_rad)
-    else:
-        yaw = yaw_rad + kappa_1_m * s
-        x = x_m + (np.sin(yaw) - math.sin(yaw_rad)) / kappa_1_m
-        y = y_m - (np.cos(yaw) - math.cos(yaw_rad)) / kappa_1_m
-    cx, cy = x + footprint_offset_m * np.cos(yaw), y + footprint_offset_m * np.sin(yaw)
+    cx, cy = arc_footprint_centres(x_m, y_m, yaw_rad, kappa_1_m, s, footprint_offset_m)
     reach = length_m + footprint_offset_m + radius_m
     near = np.hypot(points_xy[:, 0] - x_m, points_xy[:, 1] - y_m) <= reach
     if not near.any():
@@ -372,6 +372,32 @@ def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length
     pts = points_xy[near]
     d2 = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2
     return bool((d2 < radius_m * radius_m).any())
+
+
+def way_blocked(points_xy: FloatArray, kappa_1_m: float, length_m: float, radius_m: float, footprint_offset_m: float,
+                obs: Observation | None = None) -> bool:
+    """:func:`arc_blocked` from the origin along the commanded arc (``kappa_1_m``) or, with ``obs`` while the
+    robot moves (over 0.1 m/s), along the arc it is on (its yaw rate over its speed): a car's steering takes
+    a while to reach the commanded angle. ``points_xy`` in the frame of the reference point."""
+    if arc_blocked(0.0, 0.0, 0.0, kappa_1_m, length_m, points_xy, radius_m, footprint_offset_m):
+        return True
+    if obs is None or abs(obs.speed_m_s) <= 0.1:
+        return False
+    return arc_blocked(0.0, 0.0, 0.0, obs.yaw_rate_rad_s / obs.speed_m_s, length_m, points_xy, radius_m, footprint_offset_m)
+
+
+def arc_footprint_centres(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, s_m: FloatArray,
+                          footprint_offset_m: float) -> tuple[FloatArray, FloatArray]:
+    """The footprint disc's centres (``footprint_offset_m`` ahead of the reference point) at arc lengths
+    ``s_m`` along the arc of curvature ``kappa_1_m`` (1/m, CCW positive) from the pose, m."""
+    if abs(kappa_1_m) < 1e-6:
+        yaw = np.full(len(s_m), yaw_rad)
+        x, y = x_m + s_m * math.cos(yaw_rad), y_m + s_m * math.sin(yaw_rad)
+    else:
+        yaw = yaw_rad + kappa_1_m * s_m
+        x = x_m + (np.sin(yaw) - math.sin(yaw_rad)) / kappa_1_m
+        y = y_m - (np.cos(yaw) - math.cos(yaw_rad)) / kappa_1_m
+    return x + footprint_offset_m * np.cos(yaw), y + footprint_offset_m * np.sin(yaw)
 
 
 # ---- people walking: the tracker's moving tracks, and when to stand for them ----------------------------
@@ -408,17 +434,9 @@ class MoverGuard:
         if not self.on or v_m_s <= 0.0 or not self.moving:
             return False
         ts = np.arange(0.0, self.horizon_s + 1e-9, 0.1)
-        v = max(v_m_s, abs(obs.speed_m_s))
-        k = w_rad_s / v_m_s
-        yaw0, off = obs.pose.yaw_rad, self.spec.footprint_offset_m
-        s = v * ts
-        yaw = yaw0 + k * s
-        if abs(k) < 1e-6:
-            x, y = obs.pose.x_m + s * math.cos(yaw0), obs.pose.y_m + s * math.sin(yaw0)
-        else:
-            x = obs.pose.x_m + (np.sin(yaw) - math.sin(yaw0)) / k
-            y = obs.pose.y_m - (np.cos(yaw) - math.cos(yaw0)) / k
-        gx, gy = x + off * np.cos(yaw), y + off * np.sin(yaw)  # footprint centre driving on
+        s = max(v_m_s, abs(obs.speed_m_s)) * ts
+        gx, gy = arc_footprint_centres(obs.pose.x_m, obs.pose.y_m, obs.pose.yaw_rad, w_rad_s / v_m_s, s,
+                                       self.spec.footprint_offset_m)  # footprint centre driving on
         hx, hy = gx[0], gy[0]  # ... and standing
         first_go = first_stand = math.inf
         for tr in self.moving:

@@ -126,4 +126,3 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
         return _report_write_failure("bench", out, e)
     print(f"{len(results)} runs in {wall:.0f} s; wrote {len(paths)} files to {out}")
     return 0
-

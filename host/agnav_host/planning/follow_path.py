@@ -30,7 +30,7 @@ import numpy as np
 from ..perception._tracking import Track
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
-from .base import DeadlineMissed, LocalView, MoverGuard, NoPathFound, RobotSpec, arc_blocked, drive_command, local_view
+from .base import DeadlineMissed, LocalView, MoverGuard, NoPathFound, RobotSpec, drive_command, local_view, way_blocked
 
 __all__ = ["PathFollowerParams", "PathFollower", "FollowPathParams", "FollowPathPlanner"]
 
@@ -276,8 +276,7 @@ class FollowPathPlanner:
             kappa = w_r / v_r if v_r > 1e-6 else 0.0
             reach = p.stop_reach_m + max(v_r, abs(obs.speed_m_s)) * p.stop_lag_s
             # the arc asked for, and the one the robot is on (a car's steering lags the command)
-            kappas = [kappa] + ([obs.yaw_rate_rad_s / obs.speed_m_s] if abs(obs.speed_m_s) > 0.1 else [])
-            if any(arc_blocked(0.0, 0.0, 0.0, k, reach, v.xy, spec.radius_m, 0.0) for k in kappas):
+            if way_blocked(v.xy, kappa, reach, spec.radius_m, 0.0, obs):
                 v_r = 0.0
                 self.safety_stops += 1
         if self.movers.stand(obs, v_r, w_r):
@@ -285,4 +284,3 @@ class FollowPathPlanner:
         # the view goes to drive_command only for a stop (the car's roll-out steering): driving, the check
         # above reaches further than drive_command's braking guard, which would only repeat it
         return drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
-

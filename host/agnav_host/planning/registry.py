@@ -81,7 +81,7 @@ def make_planner(name: str, spec: RobotSpec | None = None, params: Any = None) -
             horizon = params.pop("mover_horizon_s")
             if not isinstance(horizon, (int, float)) or isinstance(horizon, bool) or not 0.0 <= horizon <= 10.0:
                 raise ValueError(f"bad parameters for planner {name!r}: mover_horizon_s must be 0-10 s, got {horizon!r}")
-            if name == "timed" or canonical_name(name) == "timed":
+            if entry is PLANNERS["timed"]:
                 raise ValueError("bad parameters for planner 'timed': it always tracks movers (no mover_horizon_s)")
         try:
             params = cls.params_cls(**params)

@@ -221,8 +221,7 @@ class _Reader:
         if not isinstance(v, list) or len(v) < min_count:
             raise self.error((*path, key), f"must be a list of at least {min_count} [x_m, y_m] points")
         for i, p in enumerate(v):
-            if (not isinstance(p, list) or len(p) != 2
-                    or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)):
+            if not _finite_numbers(p, 2):
                 raise self.error((*path, key, i), f"must be a [x_m, y_m] pair of numbers, got {p!r}")
         return np.asarray(v, dtype=float)
 
@@ -329,10 +328,15 @@ def _robot(rd: _Reader, data: dict[str, Any]) -> tuple[str, DiffDriveParams | Ac
     return kind, params, start, vmax
 
 
-def _finite_box(v: Any) -> bool:
-    """True for ``[xmin_m, ymin_m, xmax_m, ymax_m]``: four finite numbers (not booleans)."""
-    return (isinstance(v, list) and len(v) == 4
+def _finite_numbers(v: Any, n: int) -> bool:
+    """True for a TOML list of ``n`` finite numbers (booleans are not numbers here)."""
+    return (isinstance(v, list) and len(v) == n
             and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
+
+
+def _finite_box(v: Any) -> bool:
+    """True for ``[xmin_m, ymin_m, xmax_m, ymax_m]``: four finite numbers."""
+    return _finite_numbers(v, 4)
 
 
 def _check_meta(rd: _Reader, meta: dict[str, Any]) -> None:
@@ -348,9 +352,7 @@ def _check_meta(rd: _Reader, meta: dict[str, Any]) -> None:
     if not isinstance(rows, list):
         raise rd.error((*mp, "landmarks"), f"must be a list of [x_m, y_m, radius_m] rows, got {rows!r}")
     for i, r in enumerate(rows):
-        if (not isinstance(r, list) or len(r) != 3
-                or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in r)
-                or not r[2] > 0):
+        if not _finite_numbers(r, 3) or not r[2] > 0:
             raise rd.error((*mp, "landmarks", i), f"must be a [x_m, y_m, radius_m] row of finite numbers with "
                                                   f"radius_m > 0, got {r!r}")
 

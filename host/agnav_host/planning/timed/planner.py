@@ -392,6 +392,14 @@ class TimedPlanner:
         k_max = math.tan(self.limits.max_steer_rad) / self.limits.wheelbase_m
         return max(-k_max, min(k_max, k))
 
+    def _clear(self, plan: TimedPlan, t: float, movers: list[SpaceTimeObstacle], pts: FloatArray, margin_m: float,
+               clear_m: float) -> bool:
+        """No predicted contact with a mover over the horizon (``margin_m`` of clearance) and no static return
+        within ``clear_m`` of the footprint over the detection range: a plan adopted outside the search."""
+        p = self.params
+        return (first_conflict(plan, movers, t, t + p.horizon_s, margin_m) is None
+                and (not len(pts) or first_blocked_s(plan, pts, 0.0, p.detect_range_m, clear_m) is None))
+
     def _static_clear_m(self, why: str) -> float:
         """Clearance a static deviation must keep: ``static_clear_m``, halved after each search in a row
         that found nothing clear, down to 0 (a car without reverse that has come close to a box would
@@ -438,14 +446,10 @@ class TimedPlanner:
         searching = False
         work = (1, 0)
         try:
-            if why == "delay":
+            if why in ("delay", "early"):  # the same path re-timed to the requested arrival
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
-                action = "catch-up"
-            elif why == "early":
-                new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)
-                action = "re-timed to the requested arrival"
-                if (first_conflict(new, movers, t, t + p.horizon_s, p.moving_margin_m) is not None
-                        or len(pts) and first_blocked_s(new, pts, 0.0, p.detect_range_m, p.static_clear_m) is not None):
+                action = "catch-up" if why == "delay" else "re-timed to the requested arrival"
+                if why == "early" and not self._clear(new, t, movers, pts, p.moving_margin_m, p.static_clear_m):
                     new, action = None, "early; the requested arrival is not clear yet"
             else:
                 res = resolve(start, goal, t, arrival, self.limits, vias, movers, pts, horizon_s=p.horizon_s,
@@ -472,14 +476,15 @@ class TimedPlanner:
             if c is not None:
                 self._search = None
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, dwell_first_s=1.0, auto_via=False)
-                action += "; stop and wait"
+                fast = None
                 if first_conflict(new, movers, t, t + 2.0, 0.0) is not None:
                     # stopped here the car would be hit standing (a crossing obstacle heading for where it
                     # brakes to): get out of the way at full speed when that way is clear
                     fast = hurry_plan(start, goal, t, self.limits, vias)
-                    if (first_conflict(fast, movers, t, t + p.horizon_s, 0.0) is None
-                            and (not len(pts) or first_blocked_s(fast, pts, 0.0, p.detect_range_m, 0.0) is None)):
-                        new, action = fast, action.replace("; stop and wait", "; hurry out of the way (early)")
+                if fast is not None and self._clear(fast, t, movers, pts, 0.0, 0.0):
+                    new, action = fast, action + "; hurry out of the way (early)"
+                else:
+                    action += "; stop and wait"
         dt = time.perf_counter() - t0
         self.replan_times_s.append(dt)
         self.replan_cpu_s.append(time.thread_time() - c0)
