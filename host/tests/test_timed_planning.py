@@ -2,6 +2,7 @@
 catch-up, moving obstacles in space-time, several robots, and the planner in the simulator."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,9 +11,10 @@ from agnav_host.planning.base import DeadlineMissed
 from agnav_host.planning.registry import make_planner
 from agnav_host.planning.timed import (BoundaryState, MovingObstacle, RobotTask, TimedLimits, TimedPlanner, arc_radius_m,
                                        coordinate, deviation_point, first_conflict, hermite5_coeffs, plan_timed,
-                                       poly003_coeffs, poly_eval, resolve, steer_from_arc, via_state)
-from agnav_host.sim.runner import run_scenario
+                                       poly003_coeffs, poly_eval, resolve, steer_from_arc, track, TrackState, via_state)
+from agnav_host.sim.runner import robot_spec, run_scenario
 from agnav_host.sim.scenario import load_scenario
+from agnav_host.types import DriveCommand, Pose2D
 
 L = 0.174
 
@@ -104,6 +106,35 @@ def test_tracking_law_on_a_known_arc():
     assert steer_from_arc(d, 2 * alpha, L, 1.0) == pytest.approx(math.atan(L / R))
     assert steer_from_arc(0.1, 1.0, L, math.radians(20)) == pytest.approx(math.radians(20)), "clipped"
     assert steer_from_arc(1.0, 0.0, L, 0.3) == 0.0
+
+
+@pytest.mark.parametrize("yaw0_deg, goal_xy, arrival_s", [(20, (3.0, 1.5), 3.5), (20, (3.0, 2.0), 3.5), (20, (4.0, 1.5), 3.5),
+                                                      (35, (3.0, 2.0), 3.5), (35, (5.0, 1.0), 3.5)])
+def test_final_approach_stops_on_the_goal_heading(yaw0_deg, goal_xy, arrival_s):
+    """A plan that still turns in its last metre: pure pursuit alone aims past the goal along its straight
+    and stops 2-6 deg off the heading; the final-approach law ends within 1.5 deg, on the goal."""
+    sc = load_scenario("timed_dynamic")  # the RC car with its calibration tables, servo rate and speed lag
+    planner = TimedPlanner(robot_spec(sc))
+    gx, gy = goal_xy
+
+    def final_pose(tp):
+        robot = sc.make_robot()
+        robot.reset(Pose2D(0.0, 0.0, math.radians(yaw0_deg)))
+        plan = plan_timed(BoundaryState(0.0, 0.0, math.radians(yaw0_deg)), BoundaryState(gx, gy, 0.0), 0.0, arrival_s,
+                          planner.limits)
+        st, rng, cmd = TrackState(), np.random.default_rng(0), DriveCommand()
+        for k in range(int((arrival_s + 4.0) / 0.01)):
+            if k % 5 == 0:
+                v, steer = track(plan, robot.pose, robot.speed_m_s, k * 0.01, st, tp)
+                cmd = DriveCommand(v, 0.0, steer)
+            robot.step(cmd, 0.01, rng)
+        return math.hypot(robot.pose.x_m - gx, robot.pose.y_m - gy), abs(math.degrees(robot.pose.yaw_rad))
+
+    d_new, hdg_new = final_pose(planner.track_params)
+    d_old, hdg_old = final_pose(replace(planner.track_params, final_approach_m=0.0))
+    assert hdg_old > 1.6, "the case must be one pure pursuit alone ends off the heading"
+    assert hdg_new <= 1.5 and hdg_new < 0.5 * hdg_old
+    assert d_new <= 0.03
 
 
 def test_deviation_point_formula():

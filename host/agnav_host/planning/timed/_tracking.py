@@ -12,6 +12,17 @@ as dtheta, which halves the gain; ``arc_gain`` = 1 reproduces that, 2 is the exa
 reference path point ``lookahead`` ahead of the robot's own progress, so the steering follows the
 geometry even when the robot is early or late.
 
+Final approach (AgNav, not in 003): pure pursuit aims at a point ``lookahead`` ahead, and near the goal
+that point lies on the straight beyond it, so on a plan that still turns in its last metre (a late
+swerve round a box) the car under-steers the turn and stops a few degrees off the goal heading. Within
+``final_approach_m`` of the goal the steering is instead the path's own curvature a servo delay ahead
+plus a heading and a lateral correction,
+
+    kappa = kappa_path(s + v * final_preview_s) - k_heading * e_heading - k_lateral * e_lateral,
+
+a second-order law in arc length (natural frequency sqrt(k_lateral) per metre, damping
+k_heading / (2 sqrt(k_lateral))); the defaults 6 /m and 9 /m^2 are critically damped at 3 per metre.
+
 Speed: the profile's speed at time t plus a correction on the along-path error, and the band rule of
 the car: below v_min the command is v_min while the robot is behind or on schedule and 0 when it is
 ahead (it then waits), or while the plan brakes into or stands in a dwell and the robot is less than
@@ -59,7 +70,8 @@ class TrackingParams:
     ``brake_m_s2``: the largest deceleration the drive gives (the lag's rate is capped there), m/s^2;
     ``hold_behind_m``: braking into or standing in a dwell (a yield to an obstacle), the car stays put unless
     it is behind schedule by more than this, m (creeping at v_min to the planned stopping point would carry
-    it towards what it yields to, and each new stop plan from a rolling start lies further on)."""
+    it towards what it yields to, and each new stop plan from a rolling start lies further on);
+    ``final_*``: the final-approach law of the module docstring (0 ``final_approach_m`` turns it off)."""
 
     lookahead_s: float = 0.7
     lookahead_min_m: float = 0.35
@@ -70,6 +82,10 @@ class TrackingParams:
     control_dt_s: float = 0.05
     brake_m_s2: float = 2.0
     hold_behind_m: float = 0.15
+    final_approach_m: float = 1.5
+    final_k_heading_per_m: float = 6.0
+    final_k_lateral_per_m2: float = 9.0
+    final_preview_s: float = 0.2
 
 
 @dataclass
@@ -116,6 +132,12 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
         steer = math.copysign(lim.max_steer_rad, alpha)
     else:
         steer = steer_from_arc(d, p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
+    if remaining < p.final_approach_m:
+        _, _, yaw_here, _ = path.sample(s_rob)
+        _, _, _, k_ahead = path.sample(s_rob + abs(speed_m_s) * p.final_preview_s)
+        e_heading = (pose.yaw_rad - float(yaw_here) + math.pi) % (2.0 * math.pi) - math.pi
+        kappa = float(k_ahead) - p.final_k_heading_per_m * e_heading - p.final_k_lateral_per_m2 * lat
+        steer = max(-lim.max_steer_rad, min(lim.max_steer_rad, math.atan(lim.wheelbase_m * kappa)))
     # ---- speed: schedule + along-path correction, band rule, stop on the goal -----------------
     err = s_ref - s_rob  # > 0: behind schedule
     v = v_ref + p.k_s * err
