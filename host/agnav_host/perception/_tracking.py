@@ -61,24 +61,35 @@ def cluster_points(xy: ScanXY, sensor_xy: tuple[float, float] = (0.0, 0.0), gap_
     flagged ``cut``."""
     if len(xy) == 0:
         return []
+    xy = np.asarray(xy, dtype=float)
     d = np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1]))
-    cuts = np.flatnonzero(d > gap_m) + 1
+    start = np.concatenate(([0], np.flatnonzero(d > gap_m) + 1))  # first point of each part
+    count = np.diff(np.append(start, len(xy)))
     edge = np.zeros(len(xy), dtype=bool) if at_view_edge is None else np.asarray(at_view_edge, dtype=bool)
+    # every part at once: its extent (end to end, and from its first point to any), mean, nearest and
+    # farthest range from the sensor
+    first = np.repeat(xy[start], count, axis=0)
+    from_first = np.hypot(xy[:, 0] - first[:, 0], xy[:, 1] - first[:, 1])
+    last = xy[start + count - 1]
+    r = 0.5 * np.maximum(np.hypot(last[:, 0] - xy[start, 0], last[:, 1] - xy[start, 1]),
+                         np.maximum.reduceat(from_first, start))
+    m = np.add.reduceat(xy, start, axis=0) / count[:, None]
+    sx, sy = float(sensor_xy[0]), float(sensor_xy[1])
+    rng = np.hypot(xy[:, 0] - sx, xy[:, 1] - sy)
+    near = np.minimum.reduceat(rng, start)
+    far = np.maximum.reduceat(rng, start)
+    cut = (far > range_max_m - range_edge_m) | np.logical_or.reduceat(edge, start)
     out = []
-    for part, part_edge in zip(np.split(xy, cuts), np.split(edge, cuts)):
-        if len(part) < min_points:
-            continue
-        r = 0.5 * float(np.hypot(*(part[-1] - part[0])))
-        r = max(r, 0.5 * float(np.max(np.hypot(part[:, 0] - part[0, 0], part[:, 1] - part[0, 1]))))
-        if r > max_radius_m:
-            continue
-        m = part.mean(axis=0)
-        u = m - np.asarray(sensor_xy)
-        nu = float(np.hypot(*u))
-        rng = np.hypot(part[:, 0] - sensor_xy[0], part[:, 1] - sensor_xy[1])
-        near = float(np.min(rng))
-        c = np.asarray(sensor_xy) + (near + r) / nu * u if nu > 1e-9 else m
-        out.append(Cluster(float(c[0]), float(c[1]), r, len(part), bool(float(np.max(rng)) > range_max_m - range_edge_m or part_edge.any())))
+    for k in np.flatnonzero((count >= min_points) & (r <= max_radius_m)):
+        ux, uy = float(m[k, 0]) - sx, float(m[k, 1]) - sy
+        nu = math.hypot(ux, uy)
+        rk = float(r[k])
+        if nu > 1e-9:
+            f = (float(near[k]) + rk) / nu
+            cx, cy = sx + f * ux, sy + f * uy
+        else:
+            cx, cy = float(m[k, 0]), float(m[k, 1])
+        out.append(Cluster(cx, cy, rk, int(count[k]), bool(cut[k])))
     return out
 
 
@@ -178,6 +189,9 @@ class TrackerParams:
 
 
 class _KF:
+    """One track's constant-velocity Kalman filter state (x, y, vx, vy) and bookkeeping; predicted and
+    updated for all tracks at once by :func:`_predict_all` and :func:`_update_all`."""
+
     def __init__(self, x: float, y: float, r: float, t: float, tid: int, meas_std: float) -> None:
         self.x = np.array([x, y, 0.0, 0.0])
         self.P = np.diag([meas_std**2, meas_std**2, 1.0, 1.0])
@@ -185,27 +199,43 @@ class _KF:
         self.hits, self.misses = 1, 0
         self.x0, self.y0, self.travel, self.t_seen = x, y, 0.0, t
 
-    def predict(self, t: float, q: float) -> None:
-        dt = max(0.0, t - self.t)
-        self.t = t
-        F = np.eye(4)
-        F[0, 2] = F[1, 3] = dt
-        g = np.array([[0.5 * dt * dt, 0.0], [0.0, 0.5 * dt * dt], [dt, 0.0], [0.0, dt]])
-        self.x = F @ self.x
-        self.P = F @ self.P @ F.T + g @ g.T * q * q
 
-    def update(self, z: FloatArray, r: float, R: FloatArray) -> None:
-        H = np.zeros((2, 4))
-        H[0, 0] = H[1, 1] = 1.0
-        S = H @ self.P @ H.T + R
-        K = self.P @ H.T @ np.linalg.inv(S)
-        self.x = self.x + K @ (z - H @ self.x)
-        self.P = (np.eye(4) - K @ H) @ self.P
-        self.r = 0.7 * self.r + 0.3 * r
-        self.hits += 1
-        self.misses = 0
-        self.t_seen = self.t
-        self.travel = max(self.travel, math.hypot(self.x[0] - self.x0, self.x[1] - self.y0))
+def _predict_all(tracks: list[_KF], t: float, q: float) -> None:
+    """Predict every track to time ``t`` at once: constant velocity, white acceleration of std ``q`` (m/s^2)."""
+    if not tracks:
+        return
+    dt = np.array([max(0.0, t - tr.t) for tr in tracks])
+    X = np.array([tr.x for tr in tracks])  # (T, 4)
+    P = np.array([tr.P for tr in tracks])  # (T, 4, 4)
+    F = np.broadcast_to(np.eye(4), (len(tracks), 4, 4)).copy()
+    F[:, 0, 2] = F[:, 1, 3] = dt
+    G = np.zeros((len(tracks), 4, 2))
+    G[:, 0, 0] = G[:, 1, 1] = 0.5 * dt * dt
+    G[:, 2, 0] = G[:, 3, 1] = dt
+    X = np.einsum("tij,tj->ti", F, X)
+    P = F @ P @ F.transpose(0, 2, 1) + G @ G.transpose(0, 2, 1) * q * q
+    for k, tr in enumerate(tracks):
+        tr.t, tr.x, tr.P = t, X[k], P[k]
+
+
+def _update_all(tracks: list[_KF], clusters: list[Cluster], R: FloatArray) -> None:
+    """Kalman update of each track with its cluster's centre (position-only measurement, noise ``R``) and
+    radius (smoothed), all at once."""
+    if not tracks:
+        return
+    X = np.array([tr.x for tr in tracks])
+    P = np.array([tr.P for tr in tracks])
+    z = np.array([(c.x_m, c.y_m) for c in clusters])
+    K = P[:, :, :2] @ np.linalg.inv(P[:, :2, :2] + R)  # (M, 4, 2): position-only measurement
+    X = X + np.einsum("mij,mj->mi", K, z - X[:, :2])
+    P = P - K @ P[:, :2, :]
+    for k, (tr, c) in enumerate(zip(tracks, clusters)):
+        tr.x, tr.P = X[k], P[k]
+        tr.r = 0.7 * tr.r + 0.3 * c.radius_m
+        tr.hits += 1
+        tr.misses = 0
+        tr.t_seen = tr.t
+        tr.travel = max(tr.travel, math.hypot(tr.x[0] - tr.x0, tr.x[1] - tr.y0))
 
 
 class ObstacleTracker:
@@ -236,31 +266,36 @@ class ObstacleTracker:
             self.stale_scans += 1
             return self.tracks()
         self._last_t = t_s
-        for tr in self._tracks:
-            tr.predict(t_s, p.accel_std_m_s2)
+        _predict_all(self._tracks, t_s, p.accel_std_m_s2)
         R = np.eye(2) * p.meas_std_m**2
         used = set()
-        # greedy nearest-neighbour association, best pairs first
-        pairs = []
-        for i, tr in enumerate(self._tracks):
-            Si = np.linalg.inv(tr.P[:2, :2] + R)
-            for j, c in enumerate(clusters):
-                dz = np.array([c.x_m, c.y_m]) - tr.x[:2]
-                if float(np.hypot(*dz)) > p.max_gate_m:
-                    continue
-                if tr.hits >= p.confirm_hits and not tr.r - p.max_shrink_m <= c.radius_m <= tr.r + p.max_grow_m:
-                    continue
-                m2 = float(dz @ Si @ dz)
-                if m2 <= p.gate_sigma**2:
-                    pairs.append((m2, i, j))
-        done_t = set()
+        # greedy nearest-neighbour association, best pairs first; every (track, cluster) pair at once
+        pairs: list[tuple[float, int, int]] = []
+        if self._tracks and clusters:
+            cz = np.array([(c.x_m, c.y_m) for c in clusters])
+            cr = np.array([c.radius_m for c in clusters])
+            tz = np.array([tr.x[:2] for tr in self._tracks])
+            tr_r = np.array([tr.r for tr in self._tracks])
+            confirmed = np.array([tr.hits >= p.confirm_hits for tr in self._tracks])
+            Si = np.linalg.inv(np.array([tr.P[:2, :2] for tr in self._tracks]) + R)  # (T, 2, 2)
+            dx = cz[None, :, 0] - tz[:, None, 0]
+            dy = cz[None, :, 1] - tz[:, None, 1]
+            # dz @ Si @ dz, term by term in the same order
+            m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
+                  + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
+            ok = np.hypot(dx, dy) <= p.max_gate_m
+            sized = (tr_r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= tr_r[:, None] + p.max_grow_m)
+            ok &= ~confirmed[:, None] | sized
+            ok &= m2 <= p.gate_sigma**2
+            ii, jj = np.nonzero(ok)
+            pairs = list(zip(m2[ii, jj].tolist(), ii.tolist(), jj.tolist()))
+        done_t: dict[int, int] = {}  # track -> its cluster
         for _, i, j in sorted(pairs):
             if i in done_t or j in used:
                 continue
-            c = clusters[j]
-            self._tracks[i].update(np.array([c.x_m, c.y_m]), c.radius_m, R)
-            done_t.add(i)
+            done_t[i] = j
             used.add(j)
+        _update_all([self._tracks[i] for i in done_t], [clusters[j] for j in done_t.values()], R)
         for i, tr in enumerate(self._tracks):
             if i not in done_t:
                 tr.misses += 1
@@ -277,17 +312,17 @@ class ObstacleTracker:
         return self.tracks()
 
     def tracks(self, confirmed_only: bool = True) -> list[Track]:
-        out = []
-        for tr in self._tracks:
-            if confirmed_only and tr.hits < self.params.confirm_hits:
-                continue
-            P = tr.P
-            v = tr.x[2:]
-            sp = float(np.hypot(*v))
-            # speed variance along the velocity direction (isotropic fallback when at rest)
-            u = v / sp if sp > 1e-6 else np.array([1.0, 0.0])
-            sig = math.sqrt(max(float(u @ P[2:, 2:] @ u), 0.0)) if sp > 1e-6 else math.sqrt(max(float(np.trace(P[2:, 2:])) / 2, 0.0))
-            out.append(Track(tr.id, float(tr.x[0]), float(tr.x[1]), float(v[0]), float(v[1]), float(tr.r), sig,
-                             tuple(tuple(float(a) for a in row) for row in P), tr.t - tr.t0, tr.hits, tr.travel,
-                             tr.t - tr.t_seen))
-        return out
+        kept = [tr for tr in self._tracks if not confirmed_only or tr.hits >= self.params.confirm_hits]
+        if not kept:
+            return []
+        X = np.array([tr.x for tr in kept])
+        P = np.array([tr.P for tr in kept])
+        # speed sigma along the velocity direction (isotropic fallback when at rest)
+        sp = np.hypot(X[:, 2], X[:, 3])
+        moving = sp > 1e-6
+        ux, uy = np.where(moving, X[:, 2] / np.where(moving, sp, 1.0), 1.0), np.where(moving, X[:, 3] / np.where(moving, sp, 1.0), 0.0)
+        along = (ux * P[:, 2, 2] + uy * P[:, 3, 2]) * ux + (ux * P[:, 2, 3] + uy * P[:, 3, 3]) * uy
+        sig = np.sqrt(np.maximum(np.where(moving, along, 0.5 * (P[:, 2, 2] + P[:, 3, 3])), 0.0)).tolist()
+        xs, covs = X.tolist(), P.tolist()
+        return [Track(tr.id, x[0], x[1], x[2], x[3], float(tr.r), sg, tuple(map(tuple, cv)), tr.t - tr.t0, tr.hits,
+                      tr.travel, tr.t - tr.t_seen) for tr, x, sg, cv in zip(kept, xs, sig, covs)]
