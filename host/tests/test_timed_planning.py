@@ -13,7 +13,7 @@ from agnav_host.planning.timed import (BoundaryState, MovingObstacle, RobotTask,
                                        coordinate, deviation_point, first_conflict, hermite5_coeffs, plan_timed,
                                        poly003_coeffs, poly_eval, resolve, steer_from_arc, track, TrackState, via_state)
 from agnav_host.sim.runner import robot_spec, run_scenario
-from agnav_host.sim.scenario import load_scenario
+from agnav_host.sim.scenario import load_scenario, parse_scenario
 from agnav_host.types import DriveCommand, Pose2D
 
 L = 0.174
@@ -213,6 +213,29 @@ def test_timed_planner_in_the_simulator(name):
     assert abs(m.arrival_time_error_s) <= 0.2, m.arrival_time_error_s
     assert m.final_heading_error_deg <= 2.0
     assert m.min_clearance_m > 0.0
+
+
+def test_timed_planner_drives_a_differential_drive_robot():
+    """On a differential drive the car-like plan is driven by yaw rate (it used to send only a steering angle,
+    which such a robot ignores: it drove straight past a goal off to the side)."""
+    sc = parse_scenario("""
+[scenario]
+name = "timed_diff"
+duration_s = 30.0
+[robot]
+model = "diff_drive"
+start = { x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }
+[[goals]]
+x_m = 4.0
+y_m = 2.0
+yaw_deg = 60.0
+arrival_s = 15.0
+tolerance_m = 0.05
+""")
+    r = run_scenario(sc, "timed", seed=0)
+    assert r.end_reason == "arrived", r.end_reason  # within the goal's 5 cm
+    assert r.metrics.final_heading_error_deg <= 2.0
+    assert abs(r.metrics.arrival_time_error_s) <= 0.2
 
 
 def _gap_run(seed, monkeypatch=None, squeeze=True, beside=True, centred=True):

@@ -123,13 +123,15 @@ class TimedPlanner:
     def __init__(self, spec: RobotSpec | None = None, params: TimedParams | None = None) -> None:
         self.spec = spec or RobotSpec(kinematics="ackermann", radius_m=0.16, max_speed_m_s=1.0, min_speed_m_s=0.435,
                                       max_accel_m_s2=2.0, wheelbase_m=0.174, footprint_offset_m=0.087, control_dt_s=0.05)
-        self.params = params or TimedParams()
-        p = self.params
+        self.params = p = params or TimedParams()
+        # a differential drive follows the same car-like plans by yaw rate; its own speed lag, no dead band
+        self._car = self.spec.kinematics == "ackermann"
+        stop_lag_s = p.stop_lag_s if self._car else self.spec.stop_lag_s
         self.limits = TimedLimits.from_spec(self.spec, max_steer_rad=min(math.radians(p.max_steer_deg), self.spec.max_steer_rad),
                                             plan_steer_rad=min(math.radians(p.plan_steer_deg), self.spec.max_steer_rad),
                                             accel_m_s2=min(p.accel_m_s2, self.spec.max_accel_m_s2),
-                                            stop_lag_s=p.stop_lag_s)
-        self.track_params = TrackingParams(p.lookahead_s, p.lookahead_min_m, p.arc_gain, p.k_s, 0.10, p.stop_lag_s,
+                                            stop_lag_s=stop_lag_s)
+        self.track_params = TrackingParams(p.lookahead_s, p.lookahead_min_m, p.arc_gain, p.k_s, 0.10, stop_lag_s,
                                            self.spec.control_dt_s, self.spec.max_accel_m_s2)
         self.reset()
 
@@ -363,7 +365,8 @@ class TimedPlanner:
             self.speed_ratio = min(1.4, max(0.6, self.speed_ratio + p.speed_ratio_gain * (ratio - self.speed_ratio)))
         self._prev_speed = obs.speed_m_s
         if v > 0.0 and not self.ts.stopping:
-            v = min(max(v / self.speed_ratio, self.limits.v_min_m_s, p.command_min_m_s), self.limits.v_max_m_s)
+            floor = p.command_min_m_s if self._car else 0.0  # the car's dead band
+            v = min(max(v / self.speed_ratio, self.limits.v_min_m_s, floor), self.limits.v_max_m_s)
         # last line of defence: any return (a mover's too) inside the footprint's way within the braking
         # distance, along the plan and along the arc the car is on (it lags the plan: servo rate, speed lag;
         # turning into a gap it once swept a crate's corner the plan cleared)
@@ -377,6 +380,8 @@ class TimedPlanner:
         # the next plan starts from the tracker's wanted angle; the one sent differs by less than a step
         self._last_steer = steer
         self._last_v_cmd = v
+        if not self._car:
+            return DriveCommand(v, v * math.tan(steer) / self.limits.wheelbase_m, None)
         step = math.radians(p.steer_step_left_deg if steer > 0.0 else p.steer_step_right_deg)
         if 0.0 < abs(steer) < step:
             steer = math.copysign(step, steer)
