@@ -6,6 +6,12 @@ the built-in timed scenarios in the world simulator, and at every control step c
 planner uses as *moving* with the scenario's walkers at that time.
 
     .venv/bin/python bench/bench_tracker.py [--seeds 3]
+    .venv/bin/python bench/bench_tracker.py --timing    # only the cost of one tracker update per scan
+
+*Timing*: median wall time of ``ObstacleTracker.update`` (clustering, association, Kalman filters, the track
+records) per scan, with the planners' settings (``MoverGuard``: 1 s coasting, 0.15 m size gates), on 150 scans
+taken along the straight line from each scene's start to its first goal. Scenes with many plants (crop_rows,
+the greenhouses) have the most clusters and tracks.
 
 Columns: *moving reports* = moving tracks summed over the control steps; *off a walker* = those more than
 0.5 m from every walker's true position, split into tracks seen in that scan (a phantom: a static object
@@ -17,12 +23,14 @@ defect this measures. Scenarios without walkers can only have phantoms.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import sys
 import time
 
 import numpy as np
 
+from agnav_host.perception import ObstacleTracker, TrackerParams
 from agnav_host.sim.runner import _make_controller, run_scenario
 from agnav_host.sim.scenario import load_scenario
 
@@ -52,13 +60,52 @@ def count(name: str, seed: int) -> tuple[str, int, int, int]:
     return r.end_reason, n[0], n[1], n[2]
 
 
+TIMING_SCENES = ("crop_rows", "greenhouse", "greenhouse_shuttle", "corridor_obstacles", "canyon", "timed_dynamic", "timed_yard")
+
+
+def timing(name: str, n_scans: int = 150, repeats: int = 3) -> tuple[float, int]:
+    """(median ms per update over the repeats' per-scan minimum, most confirmed tracks in a scan)."""
+    import math
+    from agnav_host.types import Pose2D
+
+    sc = load_scenario(name)
+    assert sc.laser is not None
+    rng = np.random.default_rng(0)
+    start, g = sc.make_robot().pose, sc.goals[0]
+    yaw = math.atan2(g.y_m - start.y_m, g.x_m - start.x_m)
+    scans = [sc.laser.scan(sc.world, Pose2D(start.x_m + i / n_scans * (g.x_m - start.x_m),
+                                            start.y_m + i / n_scans * (g.y_m - start.y_m), yaw), 0.1 * i, rng)
+             for i in range(n_scans)]
+    best = np.full(n_scans, np.inf)
+    most = 0
+    for _ in range(repeats):
+        tr = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
+        for i, s in enumerate(scans):
+            t0 = time.perf_counter()
+            out = tr.update(s)
+            best[i] = min(best[i], time.perf_counter() - t0)
+            most = max(most, len(out))
+    return float(np.median(best)) * 1e3, most
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1 per scenario (default 3)")
+    ap.add_argument("--timing", action="store_true", help="only the cost of one tracker update per scan")
     ns = ap.parse_args(argv)
     if ns.seeds < 1:
         ap.error("--seeds must be >= 1")
     t0 = time.time()
+    if ns.timing:
+        print(f"# obstacle tracker update per scan ({platform.python_implementation()} {platform.python_version()}, "
+              f"load average {os.getloadavg()[0]:.1f})\n")
+        print("| scene | median ms per scan | most confirmed tracks |")
+        print("|---|---|---|")
+        for name in TIMING_SCENES:
+            ms, most = timing(name)
+            print(f"| {name} | {ms:.3f} | {most} |")
+            sys.stdout.flush()
+        return 0
     print(f"# obstacle tracker in the timed planner ({platform.python_implementation()} {platform.python_version()}), "
           f"seeds 0-{ns.seeds - 1}\n")
     print("| scenario | walkers | runs arrived | moving reports | phantoms (seen now, > 0.5 m off every walker) | coasting predictions > 0.5 m off |")
