@@ -16,7 +16,10 @@ option's own message), and they take a subcommand's options between its position
 (``param get --device X NAME``).
 
 Number options use the checked types below (:func:`finite_float`, :func:`positive_float`, ...) so that
-``nan``, ``inf`` or a negative count is refused by argparse with the option's name, not deep in a run.
+``nan``, ``inf`` or a negative count is refused by argparse with the option's name, not deep in a run. Every
+option or positional that takes text (a path, a name, a device) and declares no type of its own refuses an
+empty value (``--out ""``, ``--device "$PORT"`` with ``PORT`` unset), which would otherwise mean ``.`` or the
+option's default (:func:`nonempty_text`, added by :func:`build_parser`).
 """
 
 from __future__ import annotations
@@ -28,8 +31,9 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "build_parser",
-           "finite_float", "positive_float", "nonneg_float", "positive_int", "nonneg_int", "int_in", "unusable_out_dir"]
+__all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "build_parser", "finite_float", "positive_float",
+           "positive_float_at_most", "nonneg_float", "positive_int", "nonneg_int", "int_in", "nonempty_text",
+           "unusable_out_dir"]
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -98,6 +102,19 @@ def positive_float(text: str) -> float:
     return v
 
 
+def positive_float_at_most(hi: float, what: str = "") -> Callable[[str], float]:
+    """argparse type: a finite number > 0 and <= ``hi`` (``what`` says what ``hi`` is: "a day")."""
+
+    def parse(text: str) -> float:
+        v = positive_float(text)
+        if v > hi:
+            raise argparse.ArgumentTypeError(f"must be <= {hi:g}{f' ({what})' if what else ''}, got {text!r}")
+        return v
+
+    parse.__name__ = "float"
+    return parse
+
+
 def nonneg_float(text: str) -> float:
     """argparse type: a finite number >= 0."""
     v = finite_float(text)
@@ -110,10 +127,13 @@ def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]
     """argparse type: a whole number in [lo, hi] (either end open when None)."""
 
     def parse(text: str) -> int:
-        try:
-            v = int(text, 0)
+        try:  # decimal first, leading zeros and all ("010" is ten), then 0x10, 0o17, 0b101
+            v = int(text, 10)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+            try:
+                v = int(text, 0)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}{_digits_hint(text)}") from None
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             span = f"{lo}..{hi}" if lo is not None and hi is not None else (f">= {lo}" if lo is not None else f"<= {hi}")
             raise argparse.ArgumentTypeError(f"must be {span}, got {text!r}")
@@ -125,6 +145,32 @@ def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]
 
 positive_int = int_in(1)
 nonneg_int = int_in(0)
+
+
+def _digits_hint(text: str) -> str:
+    """For a whole number written as a float (``1e3``, ``10.0``): the digits to write instead."""
+    try:
+        f = float(text)
+    except ValueError:
+        return ""
+    return f" (write it in digits: {int(f)})" if f.is_integer() and abs(f) < 2**53 else ""
+
+
+def nonempty_text(text: str) -> str:
+    """argparse type of the text options and positionals (paths, names, devices): anything but the empty string.
+    An empty value (``--out ""``, or ``--device "$PORT"`` with PORT not set) would otherwise be taken for the
+    current folder or silently for the option's default."""
+    if text == "":
+        raise argparse.ArgumentTypeError("empty value (a shell variable that is not set?)")
+    return text
+
+
+def _refusing_empty(kw: dict[str, Any]) -> dict[str, Any]:
+    """``kw`` of an argument with :func:`nonempty_text` as its type when it takes text: it stores a value and has
+    neither a type nor a list of choices of its own."""
+    if "type" in kw or "choices" in kw or kw.get("action", "store") not in ("store", "append", "extend"):
+        return kw
+    return {**kw, "type": nonempty_text}
 
 
 def subcommand(name: str, help: str, args: Sequence[tuple[tuple[str, ...], dict[str, Any]]] = (),
@@ -223,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     for s in SUBCOMMANDS.values():
         sp = sub.add_parser(s.name, help=s.help, description=s.help, epilog=s.epilog or None)
         for flags, kw in s.args:
-            sp.add_argument(*flags, **kw)
+            sp.add_argument(*flags, **_refusing_empty(kw))
         sp.set_defaults(_handler=s.handler)
     return parser
 

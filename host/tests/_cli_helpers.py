@@ -1,10 +1,13 @@
-"""Helpers of the CLI input tests: a free TCP port, a device nobody listens on, and no user config."""
+"""Helpers of the CLI input tests: a free TCP port, a device nobody listens on, no user config, and argparse's
+refusal of a command line."""
 
 from __future__ import annotations
 
 import socket
 
 import pytest
+
+from agnav_host import cli
 
 
 @pytest.fixture(autouse=True)
@@ -26,3 +29,11 @@ def free_port() -> int:
 def nowhere() -> str:
     """A device nobody listens on: a command that got as far as connecting would say "could not open"."""
     return f"tcp:127.0.0.1:{free_port()}"
+
+
+def usage_error(capsys, argv: list[str]) -> str:
+    """Run ``agnav argv`` expecting argparse to refuse it (exit 2); return stderr."""
+    with pytest.raises(SystemExit) as e:
+        cli.main(argv)
+    assert e.value.code == 2
+    return capsys.readouterr().err

@@ -20,17 +20,9 @@ from agnav_host.link.config import ConfigError, HostConfig, load_config, to_toml
 from agnav_host.link.fake import FakeRobot
 from agnav_host.link.tlog import TlogWriter
 from agnav_host.protocol import dialect
-from _cli_helpers import _no_user_config, free_port, nowhere  # noqa: F401 (the fixture is autouse)
+from _cli_helpers import _no_user_config, free_port, nowhere, usage_error  # noqa: F401 (the fixture is autouse)
 
 UNWRITABLE_DIR = "/proc"  # exists, takes no new files (even for root)
-
-
-def usage_error(capsys, argv: list[str]) -> str:
-    """Run ``agnav argv`` expecting argparse to refuse it (exit 2); return stderr."""
-    with pytest.raises(SystemExit) as e:
-        cli.main(argv)
-    assert e.value.code == 2
-    return capsys.readouterr().err
 
 
 @pytest.fixture
@@ -371,7 +363,7 @@ def _link_parsers() -> dict:
 def test_every_numeric_option_is_checked_and_documented():
     for name, sp in _link_parsers().items():
         for a in sp._actions:
-            if not a.option_strings or a.nargs == 0 or a.type is None:
+            if not a.option_strings or a.nargs == 0 or a.type in (None, cli.nonempty_text):  # text: no number
                 continue
             assert a.type not in (int, float), f"agnav {name} {a.option_strings[0]}: unchecked {a.type.__name__}"
             assert "default" in (a.help or ""), f"agnav {name} {a.option_strings[0]}: help names no default"

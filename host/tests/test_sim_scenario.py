@@ -76,7 +76,7 @@ def test_missing_field_points_at_its_table_and_syntax_error_has_line():
 def test_multiline_arrays_do_not_confuse_the_locator():
     text = GOOD + '\n[[walls]]\npoints = [\n  [0.0, 0.0],\n  [1.0, "x"],\n]\n'
     e = _err(text)
-    assert e.field == "walls[0].points[1]" and e.line == 24  # the line of the key
+    assert e.field == "walls[0].points[1]" and e.line == 26  # the line of the element
 
 
 def test_unknown_builtin_and_missing_file():

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand
+from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_float_at_most, positive_int, subcommand
 from .config import CalibrationConfig, LinkConfig
 from .tlog import MAV_TYPE_GCS
 
@@ -30,6 +30,10 @@ _sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
 _LINK_DEFAULTS = LinkConfig()
 _CAL_DEFAULTS = CalibrationConfig()
 PNG_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what `--png` writes (matplotlib picks by suffix)
+
+#: The longest --wait and --timeout, s: a day (longer waits overflow the threading timeouts they end in)
+MAX_WAIT_S = 86400.0
+_wait_s = positive_float_at_most(MAX_WAIT_S, "a day")
 
 _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--device",), {"default": None, "help": "serial:/dev/ttyUSB0:57600, /dev/ttyACM0, tcp:HOST:PORT (SIL: "
@@ -45,9 +49,9 @@ _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--target-system",), {"type": int_in(1, 255), "default": None, "metavar": "1..255",
                             "help": "robot MAVLink system id, 1..255 (default: [link] target_system; 0 there = "
                                     "the first heartbeat heard)"}),
-    (("--wait",), {"type": positive_float, "default": 5.0,
-                   "help": "seconds to wait for the connection to open and then for the robot's heartbeat, > 0 "
-                           "(default 5)"}),
+    (("--wait",), {"type": _wait_s, "default": 5.0,
+                   "help": "seconds to wait for the connection to open and then for the robot's heartbeat, > 0, "
+                           "at most 86400 (default 5)"}),
 ]
 
 
@@ -614,7 +618,42 @@ def pio_envs(repo: Path = REPO_ROOT) -> list[str] | None:
     return re.findall(r"^\[env:([^\]]+)\]", text, re.MULTILINE)
 
 
+def _serial_ports() -> list[str]:
+    """The USB serial devices present (where an Arduino Mega or an STM32 board shows up on Linux and macOS)."""
+    import glob
+
+    return sorted(p for pat in ("/dev/ttyACM*", "/dev/ttyUSB*", "/dev/cu.usb*") for p in glob.glob(pat))
+
+
+def _upload_port_problem(port: str) -> str | None:
+    """Why ``flash --port`` cannot be uploaded to: a device path (``/dev/...``, or a pattern such as
+    ``/dev/ttyUSB*`` as PlatformIO takes) that names no device. Other ports (``COM3``, a network address) are
+    left to PlatformIO; None when there is nothing to say."""
+    import glob
+
+    if not port.startswith("/"):
+        return None
+    if any(c in port for c in "*?["):
+        if glob.glob(port):
+            return None
+        problem = "matches no device"
+    elif not os.path.exists(port):
+        problem = "no such device"
+    elif os.path.isdir(port) or os.path.isfile(port):
+        return f"{'a folder' if os.path.isdir(port) else 'a file'}, not a serial device"
+    else:
+        return None
+    here = _serial_ports()
+    return (f"{problem} (is the board plugged in? serial devices here: {', '.join(here)})" if here else
+            f"{problem} (is the board plugged in? no USB serial device here)")
+
+
 def _cmd_flash(ns: argparse.Namespace) -> int:
+    if ns.port is not None:  # before the command is shown: a dry run says the same as the upload would
+        bad = _upload_port_problem(ns.port)
+        if bad:
+            _err("flash", f"--port {ns.port}: {bad}")
+            return 1
     envs = pio_envs()
     if envs is not None:
         boards = [e for e in envs if e != "native"]
@@ -640,7 +679,8 @@ subcommand("flash", help="build and upload the firmware (pio run -e ENV -t uploa
            args=[(("--env",), {"default": "megaatmega2560",
                                "help": "PlatformIO env to build and upload: default megaatmega2560 (Arduino Mega); "
                                        "also stm32f405 (the [env:...] sections of platformio.ini)"}),
-                 (("--port",), {"default": None, "help": "upload port, e.g. /dev/ttyACM0 (default: pio autodetect)"}),
+                 (("--port",), {"default": None, "help": "upload port, e.g. /dev/ttyACM0, checked to exist (default: pio "
+                                                         "autodetect)"}),
                  (("--dry-run",), {"action": "store_true", "help": "print the command only"})])(_cmd_flash)
 
 
@@ -844,8 +884,9 @@ subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARA
                               (("value",), {"nargs": "?", "default": None,
                                             "help": "set: a finite number (negative allowed; whole for the "
                                                     "firmware's integer parameters)"}),
-                              (("--timeout",), {"type": positive_float, "default": 1.0,
-                                                "help": "seconds to wait for each answer, > 0, 3 tries (default 1; "
+                              (("--timeout",), {"type": _wait_s, "default": 1.0,
+                                                "help": "seconds to wait for each answer, > 0, at most 86400, 3 "
+                                                        "tries (default 1; "
                                                         "list: 10 x this, at least 10 s)"})])(
     lambda ns: _guard("param", _cmd_param, ns))
 
@@ -926,8 +967,9 @@ subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerp
                (("--old-key-file",), {"default": None, "help": "push: the key the robot holds now (sign with it); "
                                                                 "without it the frame goes unsigned"}),
                (("--clear",), {"action": "store_true", "help": "push: switch signing off on the robot"}),
-               (("--timeout",), {"type": positive_float, "default": 1.0,
-                                 "help": "push: seconds to wait for each answer, > 0, 3 tries (default 1)"}),
+               (("--timeout",), {"type": _wait_s, "default": 1.0,
+                                 "help": "push: seconds to wait for each answer, > 0, at most 86400, 3 tries "
+                                         "(default 1)"}),
                (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),
                (("--reveal",), {"action": "store_true", "help": "show: also print the secret key (hex)"})])(
     lambda ns: _guard("key", _cmd_key, ns))

@@ -8,6 +8,7 @@ only for syntax errors, so for value errors the key's line is found by scanning 
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 import tomllib
@@ -72,59 +73,162 @@ def _fmt_path(path: Path_) -> str:
     return out or "<root>"
 
 
-_BARE_KEY = re.compile(r'^\s*([A-Za-z0-9_\-]+(?:\s*\.\s*[A-Za-z0-9_\-]+)*)\s*=')
-_INLINE_KEY = re.compile(r'([A-Za-z0-9_\-]+)\s*=')
+class _TomlScan:
+    """Where each key, table header and array element of a TOML text starts: a small scanner over the whole
+    text (not line by line), so that multi-line strings and arrays neither hide nor invent keys and an
+    element of a multi-line array has its own line. It reads only positions, so it assumes valid TOML (the
+    text has been parsed by tomllib first) and stops quietly at anything it does not follow."""
 
+    _BARE = re.compile(r"[A-Za-z0-9_\-]+")
+    _SCALAR_END = re.compile(r"[,\]}\n#]")
 
-def _strip_strings(line: str) -> str:
-    """The line with string contents blanked and any comment removed (for bracket counting)."""
-    out = []
-    quote = ""
-    for ch in line:
-        if quote:
-            out.append(" ")
-            if ch == quote:
-                quote = ""
-        elif ch in "\"'":
-            quote = ch
-            out.append(" ")
-        elif ch == "#":
+    def __init__(self, text: str) -> None:
+        self.t = text
+        self.i = 0
+        self.newlines = [m.start() for m in re.finditer("\n", text)]
+        self.entries: list[tuple[Path_, int]] = []
+
+    def line(self, pos: int) -> int:
+        return bisect.bisect_left(self.newlines, pos) + 1
+
+    def peek(self, n: int = 1) -> str:
+        return self.t[self.i : self.i + n]
+
+    def skip(self, newlines: bool) -> None:
+        """Past blanks and comments (and line ends when ``newlines``)."""
+        while self.i < len(self.t):
+            ch = self.t[self.i]
+            if ch in " \t\r" or (newlines and ch == "\n"):
+                self.i += 1
+            elif ch == "#":
+                nl = self.t.find("\n", self.i)
+                self.i = len(self.t) if nl < 0 else nl
+            else:
+                return
+
+    def expect(self, s: str) -> None:
+        if not self.t.startswith(s, self.i):
+            raise ValueError(f"expected {s!r} at {self.i}")
+        self.i += len(s)
+
+    def string(self) -> str:
+        """Past a string of any of the four kinds (basic, literal, multi-line of each); its raw text."""
+        t, st = self.t, self.i
+        q = t[st] * 3 if t.startswith(t[st] * 3, st) else t[st]
+        j = st + len(q)
+        while True:
+            k = t.find(q, j)
+            if k < 0 or (len(q) == 1 and "\n" in t[j:k]):
+                raise ValueError("unterminated string")
+            if q[0] == '"' and _escaped(t, k):
+                j = k + 1
+                continue
             break
-        else:
-            out.append(ch)
-    return "".join(out)
+        end = k + len(q)
+        if len(q) == 3:  # up to two quotes just before the closing three belong to the string
+            while end < len(t) and end - k < 5 and t[end] == q[0]:
+                end += 1
+        self.i = end
+        return t[st:end]
+
+    def key(self) -> tuple[str, ...]:
+        """A dotted key (bare or quoted parts) -> its parts."""
+        parts = []
+        while True:
+            self.skip(False)
+            if self.peek() in ('"', "'"):
+                parts.append(tomllib.loads(f"k = {self.string()}")["k"])
+            else:
+                m = self._BARE.match(self.t, self.i)
+                if not m:
+                    raise ValueError(f"expected a key at {self.i}")
+                parts.append(m.group())
+                self.i = m.end()
+            self.skip(False)
+            if self.peek() != ".":
+                return tuple(parts)
+            self.i += 1
+
+    def value(self, path: Path_) -> None:
+        self.skip(False)
+        ch = self.peek()
+        if ch in ('"', "'"):
+            self.string()
+        elif ch in ("[", "{"):
+            close = "]" if ch == "[" else "}"
+            self.i += 1
+            n = 0
+            while True:
+                self.skip(True)
+                if self.peek() == close:
+                    break
+                if ch == "[":
+                    self.entries.append(((*path, n), self.line(self.i)))
+                    self.value((*path, n))
+                    n += 1
+                else:
+                    self.key_value(path)
+                self.skip(True)
+                if self.peek() != ",":
+                    break
+                self.i += 1
+            self.expect(close)
+        else:  # number, boolean, date
+            m = self._SCALAR_END.search(self.t, self.i)
+            self.i = len(self.t) if m is None else m.start()
+
+    def key_value(self, table: Path_) -> None:
+        at = self.line(self.i)
+        key = self.key()
+        for n in range(1, len(key) + 1):  # a.b.c = 1: a, a.b and a.b.c are all on this line
+            self.entries.append(((*table, *key[:n]), at))
+        self.expect("=")
+        self.value((*table, *key))
+
+    def run(self) -> list[tuple[Path_, int]]:
+        arrays: dict[Path_, int] = {}  # [[name]] tables seen -> index of the last one
+        table: Path_ = ()
+        try:
+            while True:
+                self.skip(True)
+                if self.i >= len(self.t):
+                    break
+                at = self.line(self.i)
+                if self.peek() == "[":
+                    many = self.peek(2) == "[["
+                    self.i += 2 if many else 1
+                    name = self.key()
+                    self.expect("]]" if many else "]")
+                    table = ()
+                    for part in name[:-1]:  # [a.b] after [[a]] is b of a's last table
+                        table = (*table, part)
+                        if table in arrays:
+                            table = (*table, arrays[table])
+                    table = (*table, name[-1])
+                    if many:
+                        arrays[table] = arrays.get(table, -1) + 1
+                        table = (*table, arrays[table])
+                    for n in range(1, len(table) + 1):  # [[goals]]: ("goals",) too, on its first header
+                        self.entries.append((table[:n], at))
+                else:
+                    self.key_value(table)
+        except (ValueError, IndexError, RecursionError, tomllib.TOMLDecodeError):
+            pass  # not TOML this scanner follows: what was found so far
+        return self.entries
+
+
+def _escaped(text: str, k: int) -> bool:
+    """True when the character at ``k`` follows an odd number of backslashes."""
+    n = 0
+    while k - n - 1 >= 0 and text[k - n - 1] == "\\":
+        n += 1
+    return n % 2 == 1
 
 
 def _key_index(text: str) -> list[tuple[Path_, int]]:
-    """(key path, line) for every table header, key and inline-table key in a TOML text."""
-    entries: list[tuple[Path_, int]] = []
-    header: Path_ = ()
-    counts: dict[tuple[str, ...], int] = {}
-    depth = 0
-    for lineno, raw in enumerate(text.splitlines(), 1):
-        s = _strip_strings(raw).strip()
-        if depth == 0 and s.startswith("[["):
-            name = tuple(p.strip() for p in s[2 : s.find("]]")].split("."))
-            counts[name] = counts.get(name, -1) + 1
-            header = (*name, counts[name])
-            entries.append((header, lineno))
-            continue
-        if depth == 0 and s.startswith("["):
-            header = tuple(p.strip() for p in s[1 : s.find("]")].split("."))
-            entries.append((header, lineno))
-            continue
-        if depth == 0:
-            m = _BARE_KEY.match(s)
-            if m:
-                key = tuple(k.strip() for k in m.group(1).split("."))
-                entries.append(((*header, *key), lineno))
-                rest = s[m.end() :]
-                if "{" in rest:  # inline table: index its keys on this line too
-                    for sub in _INLINE_KEY.findall(rest):
-                        entries.append(((*header, *key, sub), lineno))
-        depth += s.count("[") + s.count("{") - s.count("]") - s.count("}")
-        depth = max(depth, 0)
-    return entries
+    """(path, line) for every table header, key (inline-table keys too) and array element in a TOML text; an
+    ``[[name]]`` table's path holds its index, as does an element's: ``("walls", 0, "points", 2)``."""
+    return _TomlScan(text).run()
 
 
 def locate_line(text: str, path: Path_) -> int | None:
