@@ -328,3 +328,48 @@ def test_bench_says_at_once_what_is_under_way(tmp_path, no_run, capsys):
     assert main(["bench", "planners", "--out", str(out), "--scenarios", "canyon", "--planners", "him", "--seeds", "1",
                  "--quiet", "--no-plot"]) == 0
     assert "runs on" not in capsys.readouterr().err
+
+
+def test_bench_never_starts_more_workers_than_runs(monkeypatch, tmp_path, capsys):
+    """``--jobs 100000`` used to start that many processes for a two-run subset."""
+    import agnav_host.planning.bench as bench
+
+    pools: list[int] = []
+
+    class Pool:  # runs nothing: records how many workers were asked for
+        def __init__(self, n):
+            pools.append(n)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def imap_unordered(self, fn, items):
+            return ((i, {"job": job}) for i, job in items)
+
+    monkeypatch.setattr(bench.mp, "get_context", lambda *a: type("Ctx", (), {"Pool": Pool}))
+    out = bench.run_suite([bench.BenchCase("canyon", ("flb",), (0, 1), "test")], processes=100_000)
+    assert pools == [2] and [r["job"] for r in out] == [("canyon", "flb", 0), ("canyon", "flb", 1)]
+    monkeypatch.setattr(bench, "run_suite", lambda *a, **k: [])
+    main(["bench", "planners", "--out", str(tmp_path / "o"), "--scenarios", "canyon", "--planners", "flb",
+          "--seeds", "2", "--jobs", "100000", "--no-plot"])
+    assert "2 runs on 2 worker(s)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, opt", [(["--arrive-in", "1e300"], "--arrive-in"), (["--arrive-in", "86401"], "--arrive-in"),
+                                       (["--goal", "3e300,2,0"], "--goal"), (["--start", "0,-1e6,0"], "--start")])
+def test_plan_refuses_times_and_places_beyond_a_field_robot(args, opt, capsys):
+    """They used to print 300-digit durations and distances."""
+    base = {"--start": "0,0,0", "--goal": "3,2,0"}
+    for k, v in zip(args[::2], args[1::2]):
+        base[k] = v
+    argv = ["plan"] + [x for kv in base.items() for x in kv] + ([] if "--arrive-in" in base else ["--arrive-in", "20"])
+    assert _exit_code(argv) == 2
+    err = capsys.readouterr().err
+    assert f"argument {opt}:" in err and len(err) < 400
+
+
+def test_plan_takes_a_day_and_100_km():
+    assert main(["plan", "--start", "0,0,0", "--goal", "-100000,5,90", "--arrive-in", "86400"]) in (0, 3)

@@ -110,7 +110,8 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     if not ns.quiet:  # the bar moves only when a run ends: say at once what is under way
         import os
 
-        print(f"agnav bench: {len(jobs_of(suite))} runs on {ns.jobs or os.cpu_count() or 1} worker(s), results to {out}",
+        n_runs = len(jobs_of(suite))
+        print(f"agnav bench: {n_runs} runs on {max(1, min(ns.jobs or os.cpu_count() or 1, n_runs))} worker(s), results to {out}",
               file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)
