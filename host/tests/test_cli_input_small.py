@@ -92,6 +92,15 @@ def test_sim_names_the_line_of_a_bad_element_in_a_multiline_wall(tmp_path, capsy
     assert err.startswith(f"agnav sim: {f}:{_bad_line(text)}: walls[0].points[1]: must be a [x_m, y_m] pair"), err
 
 
+@pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n", "\ufeff"])
+def test_sim_of_an_empty_scenario_says_it_is_empty(text, tmp_path, capsys):
+    """It said "<root>: missing required table [scenario]"."""
+    f = tmp_path / "s.toml"
+    f.write_text(text, encoding="utf-8")
+    err = sim_refused(capsys, tmp_path, f)
+    assert err.startswith(f"agnav sim: {f}: no scenario in the file (it is empty or holds only comments)"), err
+
+
 def _value_paths(v, path=()):
     """Every table key, array-of-tables entry and array element of a parsed TOML document, as paths."""
     if path:

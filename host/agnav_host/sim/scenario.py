@@ -491,6 +491,10 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         if line is None and "end of document" in str(e):  # a truncated file: the error is on its last line
             line = max(1, len(text.splitlines()))
         raise ScenarioError("<toml>", line, f"TOML syntax error: {e}", source) from None
+    if not data:  # an empty file, or comments only: say so rather than name the first missing table
+        raise ScenarioError("", None, "no scenario in the file (it is empty or holds only comments); a scenario "
+                            "needs at least a [scenario] table with a name and a [robot] table (docs/scenario_schema.md)",
+                            source)
     rd = _Reader(text, source)
     rd.keys(data, (), _TOP_KEYS)
     sc = rd.table(data, "scenario", (), required=True)
