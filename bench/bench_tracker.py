@@ -23,6 +23,7 @@ defect this measures. Scenarios without walkers can only have phantoms.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import sys
@@ -33,6 +34,7 @@ import numpy as np
 from agnav_host.perception import ObstacleTracker, TrackerParams
 from agnav_host.sim.runner import _make_controller, run_scenario
 from agnav_host.sim.scenario import load_scenario
+from agnav_host.types import Pose2D
 
 SCENARIOS = ("timed_static", "timed_dynamic", "timed_delay", "timed_gap", "timed_yard", "timed_003_case1")
 OFF_M = 0.5
@@ -65,9 +67,6 @@ TIMING_SCENES = ("crop_rows", "greenhouse", "greenhouse_shuttle", "corridor_obst
 
 def timing(name: str, n_scans: int = 150, repeats: int = 3) -> tuple[float, int]:
     """(median ms per update over the repeats' per-scan minimum, most confirmed tracks in a scan)."""
-    import math
-    from agnav_host.types import Pose2D
-
     sc = load_scenario(name)
     assert sc.laser is not None
     rng = np.random.default_rng(0)

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 __all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "build_parser", "finite_float", "positive_float",
-           "positive_float_at_most", "nonneg_float", "positive_int", "nonneg_int", "int_in", "nonempty_text",
+           "positive_float_at_most", "DAY_S", "up_to_a_day", "nonneg_float", "positive_int", "nonneg_int", "int_in", "nonempty_text",
            "unusable_out_dir"]
 
 Handler = Callable[[argparse.Namespace], int]
@@ -113,6 +113,12 @@ def positive_float_at_most(hi: float, what: str = "") -> Callable[[str], float]:
 
     parse.__name__ = "float"
     return parse
+
+
+#: The longest time an option takes, s (a wait, a timeout, an arrival time): longer waits overflow the
+#: threading timeouts they end in, and no field robot's task is timed further out
+DAY_S = 86400.0
+up_to_a_day = positive_float_at_most(DAY_S, "a day")
 
 
 def nonneg_float(text: str) -> float:

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_float_at_most, positive_int, subcommand
+from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand, up_to_a_day
 from .config import CalibrationConfig, LinkConfig
 from .tlog import MAV_TYPE_GCS
 
@@ -30,10 +30,6 @@ _sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
 _LINK_DEFAULTS = LinkConfig()
 _CAL_DEFAULTS = CalibrationConfig()
 PNG_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what `--png` writes (matplotlib picks by suffix)
-
-#: The longest --wait and --timeout, s: a day (longer waits overflow the threading timeouts they end in)
-MAX_WAIT_S = 86400.0
-_wait_s = positive_float_at_most(MAX_WAIT_S, "a day")
 
 _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--device",), {"default": None, "help": "serial:/dev/ttyUSB0:57600, /dev/ttyACM0, tcp:HOST:PORT (SIL: "
@@ -49,7 +45,7 @@ _LINK_ARGS: list[tuple[tuple[str, ...], dict[str, Any]]] = [
     (("--target-system",), {"type": int_in(1, 255), "default": None, "metavar": "1..255",
                             "help": "robot MAVLink system id, 1..255 (default: [link] target_system; 0 there = "
                                     "the first heartbeat heard)"}),
-    (("--wait",), {"type": _wait_s, "default": 5.0,
+    (("--wait",), {"type": up_to_a_day, "default": 5.0,
                    "help": "seconds to wait for the connection to open and then for the robot's heartbeat, > 0, "
                            "at most 86400 (default 5)"}),
 ]
@@ -884,7 +880,7 @@ subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARA
                               (("value",), {"nargs": "?", "default": None,
                                             "help": "set: a finite number (negative allowed; whole for the "
                                                     "firmware's integer parameters)"}),
-                              (("--timeout",), {"type": _wait_s, "default": 1.0,
+                              (("--timeout",), {"type": up_to_a_day, "default": 1.0,
                                                 "help": "seconds to wait for each answer, > 0, at most 86400, 3 "
                                                         "tries (default 1; "
                                                         "list: 10 x this, at least 10 s)"})])(
@@ -967,7 +963,7 @@ subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerp
                (("--old-key-file",), {"default": None, "help": "push: the key the robot holds now (sign with it); "
                                                                 "without it the frame goes unsigned"}),
                (("--clear",), {"action": "store_true", "help": "push: switch signing off on the robot"}),
-               (("--timeout",), {"type": _wait_s, "default": 1.0,
+               (("--timeout",), {"type": up_to_a_day, "default": 1.0,
                                  "help": "push: seconds to wait for each answer, > 0, at most 86400, 3 tries "
                                          "(default 1)"}),
                (("--force",), {"action": "store_true", "help": "new: replace an existing key"}),

@@ -200,10 +200,11 @@ class _KF:
         self.x0, self.y0, self.travel, self.t_seen = x, y, 0.0, t
 
 
-def _predict_all(tracks: list[_KF], t: float, q: float) -> None:
-    """Predict every track to time ``t`` at once: constant velocity, white acceleration of std ``q`` (m/s^2)."""
+def _predict_all(tracks: list[_KF], t: float, q: float) -> tuple[FloatArray, FloatArray]:
+    """Predict every track to time ``t`` at once: constant velocity, white acceleration of std ``q`` (m/s^2).
+    Returns the predicted states (T, 4) and covariances (T, 4, 4), in the tracks' order."""
     if not tracks:
-        return
+        return np.zeros((0, 4)), np.zeros((0, 4, 4))
     dt = np.array([max(0.0, t - tr.t) for tr in tracks])
     X = np.array([tr.x for tr in tracks])  # (T, 4)
     P = np.array([tr.P for tr in tracks])  # (T, 4, 4)
@@ -216,6 +217,7 @@ def _predict_all(tracks: list[_KF], t: float, q: float) -> None:
     P = F @ P @ F.transpose(0, 2, 1) + G @ G.transpose(0, 2, 1) * q * q
     for k, tr in enumerate(tracks):
         tr.t, tr.x, tr.P = t, X[k], P[k]
+    return X, P
 
 
 def _update_all(tracks: list[_KF], clusters: list[Cluster], R: FloatArray) -> None:
@@ -266,7 +268,7 @@ class ObstacleTracker:
             self.stale_scans += 1
             return self.tracks()
         self._last_t = t_s
-        _predict_all(self._tracks, t_s, p.accel_std_m_s2)
+        X, P = _predict_all(self._tracks, t_s, p.accel_std_m_s2)
         R = np.eye(2) * p.meas_std_m**2
         used = set()
         # greedy nearest-neighbour association, best pairs first; every (track, cluster) pair at once
@@ -274,12 +276,11 @@ class ObstacleTracker:
         if self._tracks and clusters:
             cz = np.array([(c.x_m, c.y_m) for c in clusters])
             cr = np.array([c.radius_m for c in clusters])
-            tz = np.array([tr.x[:2] for tr in self._tracks])
             tr_r = np.array([tr.r for tr in self._tracks])
             confirmed = np.array([tr.hits >= p.confirm_hits for tr in self._tracks])
-            Si = np.linalg.inv(np.array([tr.P[:2, :2] for tr in self._tracks]) + R)  # (T, 2, 2)
-            dx = cz[None, :, 0] - tz[:, None, 0]
-            dy = cz[None, :, 1] - tz[:, None, 1]
+            Si = np.linalg.inv(P[:, :2, :2] + R)  # (T, 2, 2)
+            dx = cz[None, :, 0] - X[:, None, 0]
+            dy = cz[None, :, 1] - X[:, None, 1]
             # dz @ Si @ dz, term by term in the same order
             m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
                   + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
@@ -320,7 +321,8 @@ class ObstacleTracker:
         # speed sigma along the velocity direction (isotropic fallback when at rest)
         sp = np.hypot(X[:, 2], X[:, 3])
         moving = sp > 1e-6
-        ux, uy = np.where(moving, X[:, 2] / np.where(moving, sp, 1.0), 1.0), np.where(moving, X[:, 3] / np.where(moving, sp, 1.0), 0.0)
+        n = np.where(moving, sp, 1.0)
+        ux, uy = np.where(moving, X[:, 2] / n, 1.0), np.where(moving, X[:, 3] / n, 0.0)
         along = (ux * P[:, 2, 2] + uy * P[:, 3, 2]) * ux + (ux * P[:, 2, 3] + uy * P[:, 3, 3]) * uy
         sig = np.sqrt(np.maximum(np.where(moving, along, 0.5 * (P[:, 2, 2] + P[:, 3, 3])), 0.0)).tolist()
         xs, covs = X.tolist(), P.tolist()

@@ -106,14 +106,19 @@ def jobs_of(suite: Iterable[BenchCase]) -> list[tuple[str, str, int]]:
     return [(c.scenario, p, s) for c in suite for p in c.planners for s in c.seeds]
 
 
+def workers(processes: int | None, n_jobs: int) -> int:
+    """How many worker processes a suite of ``n_jobs`` runs on: ``processes`` (default: all cores), never more
+    than the jobs, so ``--jobs 100000`` does not start 100,000 processes."""
+    return max(1, min(processes or os.cpu_count() or 1, n_jobs))
+
+
 def run_suite(suite: Iterable[BenchCase] = SUITE, processes: int | None = None,
               progress: Callable[[int, int, dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Run every job of ``suite`` on ``processes`` workers (default: all cores; never more than the jobs, so
-    ``--jobs 100000`` does not start 100,000 processes); results in job order."""
+    """Run every job of ``suite`` on :func:`workers` processes; results in job order."""
     jobs = jobs_of(suite)
     # longest jobs first so the pool ends together
     order = sorted(range(len(jobs)), key=lambda i: (jobs[i][0] != "greenhouse_cycles", jobs[i][1] != "subsumption"))
-    n = max(1, min(processes or os.cpu_count() or 1, len(jobs)))
+    n = workers(processes, len(jobs))
     out: list[dict[str, Any] | None] = [None] * len(jobs)
     ctx = mp.get_context("fork") if sys.platform != "win32" else mp.get_context()
     with ctx.Pool(n) as pool:

@@ -63,7 +63,7 @@ def _cmd_planners(ns: argparse.Namespace) -> int:
 def _cmd_bench(ns: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from .bench import SUITE, jobs_of, progress_bar, run_suite, write_report
+    from .bench import SUITE, jobs_of, progress_bar, run_suite, workers, write_report
 
     suite = list(SUITE)
     for opt, value in (("--scenarios", ns.scenarios), ("--planners", ns.planners)):
@@ -108,10 +108,8 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
         print(f"agnav bench: --out {out}: {bad_out}", file=sys.stderr)
         return 1
     if not ns.quiet:  # the bar moves only when a run ends: say at once what is under way
-        import os
-
         n_runs = len(jobs_of(suite))
-        print(f"agnav bench: {n_runs} runs on {max(1, min(ns.jobs or os.cpu_count() or 1, n_runs))} worker(s), results to {out}",
+        print(f"agnav bench: {n_runs} runs on {workers(ns.jobs, n_runs)} worker(s), results to {out}",
               file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     results = run_suite(suite, ns.jobs, None if ns.quiet else progress_bar)

@@ -19,7 +19,7 @@ import json
 import math
 import sys
 
-from ..cli import finite_float, int_in, nonneg_float, positive_float, positive_float_at_most, subcommand
+from ..cli import finite_float, int_in, nonneg_float, positive_float, subcommand, up_to_a_day
 from .timed import TimedLimits
 
 __all__: list[str] = []
@@ -40,10 +40,9 @@ def _pose(text: str) -> tuple[float, float, float]:
     return vals[0], vals[1], vals[2]
 
 
-#: Largest |x|, |y| of a pose (m) and latest arrival (s) `plan` takes: a field robot's task lies well within
-#: them, and 1e300 printed 300-digit figures
+#: Largest |x|, |y| of a pose `plan` takes, m: a field robot's task lies well within it (1e300 printed
+#: 300-digit figures); its arrival time is at most a day (cli.up_to_a_day)
 MAX_COORD_M = 1e5
-MAX_ARRIVE_IN_S = 86400.0
 
 
 _DEF = TimedLimits()
@@ -61,7 +60,7 @@ _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
     args=[
         (("--start",), {"type": _pose, "required": True, "metavar": "X,Y,HDG_DEG", "help": "start pose (m, m, deg)"}),
         (("--goal",), {"type": _pose, "required": True, "metavar": "X,Y,HDG_DEG", "help": "goal pose (m, m, deg)"}),
-        (("--arrive-in",), {"type": positive_float_at_most(MAX_ARRIVE_IN_S, "a day"), "default": None, "metavar": "SECONDS",
+        (("--arrive-in",), {"type": up_to_a_day, "default": None, "metavar": "SECONDS",
                             "help": "arrival time after the start, s, > 0 and <= 86400 (default: untimed, at the cruise speed "
                                     f"{_DEF.cruise_m_s:g} m/s, capped at --max-speed)"}),
         (("--start-steer-deg",), {"type": finite_float, "default": 0.0, "metavar": "DEG",

@@ -35,7 +35,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ...types import Pose2D
+import numpy as np
+
+from ...types import Pose2D, norm_angle_rad
 from ._plan import TimedPlan
 
 __all__ = ["arc_radius_m", "steer_from_arc", "TrackingParams", "TrackState", "track"]
@@ -111,7 +113,6 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
     s_ref, v_ref = plan.profile.eval(t_s - plan.t0_s)
     s_ref, v_ref = float(s_ref), float(v_ref)
     st.s_ref_m, st.v_ref_m_s = s_ref, v_ref
-    L = max(p.lookahead_min_m, p.lookahead_s * max(abs(speed_m_s), v_ref))
     gx, gy = plan.goal.x_m, plan.goal.y_m
     remaining = max(path.length_m - s_rob, 0.0)
     # the path's end: use the true distance along the goal heading once close
@@ -120,24 +121,24 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
     if remaining < 0.5:
         remaining = along_goal
     st.remaining_m = remaining
-    # ---- steering: 003 arc to the reference point --------------------------------------------
-    rx, ry, _, _ = path.sample(s_rob + L)
-    dx, dy = float(rx) - pose.x_m, float(ry) - pose.y_m
-    d = math.hypot(dx, dy)
-    alpha = math.atan2(dy, dx) - pose.yaw_rad
-    alpha = (alpha + math.pi) % (2.0 * math.pi) - math.pi
-    if abs(alpha) > 0.5 * math.pi:
-        # the reference point is behind: the arc through it would be nearly straight (Rb -> inf as alpha
-        # -> 180 deg) and drive away from the path; turn towards it at full lock instead
-        steer = math.copysign(lim.max_steer_rad, alpha)
-    else:
-        steer = steer_from_arc(d, p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
     if remaining < p.final_approach_m:
-        _, _, yaw_here, _ = path.sample(s_rob)
-        _, _, _, k_ahead = path.sample(s_rob + abs(speed_m_s) * p.final_preview_s)
-        e_heading = (pose.yaw_rad - float(yaw_here) + math.pi) % (2.0 * math.pi) - math.pi
-        kappa = float(k_ahead) - p.final_k_heading_per_m * e_heading - p.final_k_lateral_per_m2 * lat
+        # ---- steering near the goal: the final-approach law (module docstring) ------------------
+        _, _, yaw, kap = path.sample(np.array([s_rob, s_rob + abs(speed_m_s) * p.final_preview_s]))
+        e_heading = norm_angle_rad(pose.yaw_rad - float(yaw[0]))
+        kappa = float(kap[1]) - p.final_k_heading_per_m * e_heading - p.final_k_lateral_per_m2 * lat
         steer = max(-lim.max_steer_rad, min(lim.max_steer_rad, math.atan(lim.wheelbase_m * kappa)))
+    else:
+        # ---- steering: 003 arc to the reference point ----------------------------------------
+        L = max(p.lookahead_min_m, p.lookahead_s * max(abs(speed_m_s), v_ref))
+        rx, ry, _, _ = path.sample(s_rob + L)
+        dx, dy = float(rx) - pose.x_m, float(ry) - pose.y_m
+        alpha = norm_angle_rad(math.atan2(dy, dx) - pose.yaw_rad)
+        if abs(alpha) > 0.5 * math.pi:
+            # the reference point is behind: the arc through it would be nearly straight (Rb -> inf as alpha
+            # -> 180 deg) and drive away from the path; turn towards it at full lock instead
+            steer = math.copysign(lim.max_steer_rad, alpha)
+        else:
+            steer = steer_from_arc(math.hypot(dx, dy), p.arc_gain * alpha, lim.wheelbase_m, lim.max_steer_rad)
     # ---- speed: schedule + along-path correction, band rule, stop on the goal -----------------
     err = s_ref - s_rob  # > 0: behind schedule
     v = v_ref + p.k_s * err
