@@ -151,7 +151,9 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
     Differential drive: speed and yaw rate clipped. Ackermann: the yaw rate becomes the virtual
     front-wheel angle ``atan(L w / v)`` (no turning on the spot: |v| is taken as at least 0.2 m/s for
     the angle, a stop steering like a slow forward move; reversing, the angle changes sign so that the
-    yaw rate keeps the asked sign), and a forward speed is at least ``min_speed_m_s``.
+    yaw rate keeps the asked sign), and a forward speed is at least ``min_speed_m_s``. A turn on the spot
+    (speed 0, yaw rate at least TURN_ON_SPOT_RAD_S) is driven forward at the slowest speed and full lock
+    when that arc is clear (:func:`_forward_turn_clear`); else the car stands.
 
     ``view`` (the planner's obstacle points): braking guard. When a point lies in the footprint's way
     along the arc the command drives, within the stopping distance (one control period plus the drive's
@@ -167,14 +169,72 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
         if view is not None and v > 0.0 and _brake_now(spec, view, v, w / v, obs):
             v = 0.0
         return DriveCommand(v, w)
-    if v > 0.0:
-        v = max(v, spec.min_speed_m_s)
-    steer = clip(math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2)), -spec.max_steer_rad, spec.max_steer_rad)
+    turn = v == 0.0 and abs(w) >= TURN_ON_SPOT_RAD_S and _forward_turn_clear(spec, w, view, obs)
+    if turn:
+        v, steer = spec.min_speed_m_s, math.copysign(spec.max_steer_rad, w)
+    else:
+        if v > 0.0:
+            v = max(v, spec.min_speed_m_s)
+        steer = clip(math.atan2(spec.wheelbase_m * w * (-1.0 if v < 0.0 else 1.0), max(abs(v), 0.2)), -spec.max_steer_rad, spec.max_steer_rad)
     if view is not None and v > 0.0 and _brake_now(spec, view, v, math.tan(steer) / spec.wheelbase_m, obs):
         v = 0.0
     if view is not None and obs is not None and v == 0.0 and obs.speed_m_s > 0.1:
         steer = _roll_out_steer(spec, view, obs, steer)
-    return DriveCommand(v, 0.0, steer)
+    return ForwardTurn(v, 0.0, steer) if turn and v > 0.0 else DriveCommand(v, 0.0, steer)
+
+
+@dataclass(frozen=True)
+class ForwardTurn(DriveCommand):
+    """:func:`drive_command`'s stand-in on a car for a wish to turn on the spot: the slowest speed at full
+    lock. A :class:`MoverGuard` lets it go only while no moving track comes near (``forward_turn`` in
+    :meth:`MoverGuard.stand`): the car would otherwise have stood there."""
+
+
+#: the roll-out check tries the steering angles the wheels pass through this far apart (rad)
+ROLL_OUT_SWING_STEP_RAD = math.radians(5.0)
+#: Ackermann: a wish to turn on the spot at least this fast (rad/s) becomes a forward turn at full lock
+TURN_ON_SPOT_RAD_S = 0.05
+#: ... and, with a MoverGuard, when no moving track comes within this much more than its margin (m)
+FORWARD_TURN_MOVER_MARGIN_M = 0.5
+#: ... nor while a track that has moved (a walker, moving now or not: one turning round at the end of its
+#: beat slows, or leaves a track coasting on the old way) is this close to the robot (m, clearance)
+FORWARD_TURN_WALKER_CLEAR_M = 1.5
+#: ... when the full-lock arc is clear this far beyond the stopping distance at the slowest speed (m): a turn
+#: begun only to be stopped a step later (the next point in the way) leaves the car rolling into it
+FORWARD_TURN_CLEAR_M = 0.3
+
+
+def _forward_turn_clear(spec: RobotSpec, w: float, view: "LocalView | None", obs: Observation | None) -> bool:
+    """A car cannot turn on the spot (it stood there until the run timed out): drive the turn forward at its
+    slowest speed and full lock instead, when its obstacle points are known, the full-lock arc is clear (see
+    FORWARD_TURN_CLEAR_M) and the goal is not already reached (a planner turning to the goal's heading
+    there would set the car circling)."""
+    if view is None or obs is None or spec.min_speed_m_s <= 0.0:
+        return False
+    if math.hypot(obs.goal.x_m - obs.pose.x_m, obs.goal.y_m - obs.pose.y_m) <= obs.goal.tolerance_m:
+        return False
+    if len(view.xy) == 0:
+        return True
+    lock = math.copysign(spec.max_steer_rad, w)
+    reach = _stopping_reach_m(spec, max(spec.min_speed_m_s, abs(obs.speed_m_s))) + FORWARD_TURN_CLEAR_M
+    pts = _from_reference_point(spec, view)
+    return _swing_clear(spec, pts, _steer_now(spec, obs, lock), lock, reach)
+
+
+def _steer_now(spec: RobotSpec, obs: Observation, standing: float) -> float:
+    """The steering angle the car is on (from its yaw rate over its speed) while it rolls; ``standing`` when
+    it does not (its wheels then swing without moving it)."""
+    if abs(obs.speed_m_s) <= 0.1:
+        return standing
+    return clip(math.atan(spec.wheelbase_m * obs.yaw_rate_rad_s / obs.speed_m_s), -spec.max_steer_rad, spec.max_steer_rad)
+
+
+def _swing_clear(spec: RobotSpec, pts: FloatArray, now: float, to: float, reach_m: float) -> bool:
+    """No point in the footprint's way over ``reach_m`` along any arc between the steering angle the car is
+    on and ``to`` (rad): the wheels pass through them while it rolls."""
+    swing = np.linspace(now, to, max(2, int(abs(to - now) / ROLL_OUT_SWING_STEP_RAD) + 2))
+    return not any(arc_blocked(0.0, 0.0, 0.0, math.tan(a) / spec.wheelbase_m, reach_m, pts, spec.radius_m,
+                               spec.footprint_offset_m) for a in swing)
 
 
 def _stopping_reach_m(spec: RobotSpec, v_m_s: float) -> float:
@@ -192,17 +252,19 @@ def _from_reference_point(spec: RobotSpec, view: "LocalView") -> FloatArray:
 def _roll_out_steer(spec: RobotSpec, view: "LocalView", obs: Observation, steer: float) -> float:
     """A car told to stop still rolls (its speed lag) along whatever its wheels point to: the steering
     asked for when that roll-out is clear, else the first clear of the angle it is on, straight ahead and
-    full lock either way; the angle asked for when none is."""
+    full lock either way; the angle it is on when none is. Clear means every arc between the angle the car is
+    on and the candidate (the wheels swing through them while it rolls: swung straight across, a car grazed
+    the box it had stopped for)."""
     if len(view.xy) == 0:
         return steer
     reach = _stopping_reach_m(spec, obs.speed_m_s)
     pts = _from_reference_point(spec, view)
-    now = math.atan(spec.wheelbase_m * obs.yaw_rate_rad_s / obs.speed_m_s)
+    now = _steer_now(spec, obs, steer)
     for cand in (steer, now, 0.0, spec.max_steer_rad, -spec.max_steer_rad):
         cand = clip(cand, -spec.max_steer_rad, spec.max_steer_rad)
-        if not arc_blocked(0.0, 0.0, 0.0, math.tan(cand) / spec.wheelbase_m, reach, pts, spec.radius_m, spec.footprint_offset_m):
+        if _swing_clear(spec, pts, now, cand, reach):
             return cand
-    return steer
+    return now
 
 
 def _brake_now(spec: RobotSpec, view: "LocalView", v_m_s: float, kappa_1_m: float, obs: Observation | None) -> bool:
@@ -419,6 +481,8 @@ class MoverGuard:
         self.spec, self.horizon_s, self.margin_m = spec, horizon_s, margin_m
         self.tracker = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
         self.moving: list = []  # the tracker's moving tracks at the last update (perception Track)
+        self._walked: set[int] = set()  # ids of the tracks that have moved
+        self.walkers: list = []  # tracks that have moved, moving or not now (a walker turning round slows)
         self.stops = 0  # steps the robot stood for a moving track
 
     @property
@@ -427,11 +491,24 @@ class MoverGuard:
 
     def update(self, obs: Observation) -> None:
         if self.on and obs.scan is not None and obs.scan.pose is not None:
-            self.moving = [tr for tr in self.tracker.update(obs.scan, obs.t_s) if tr.moving]
+            tracks = self.tracker.update(obs.scan, obs.t_s)
+            self.moving = [tr for tr in tracks if tr.moving]
+            self._walked |= {tr.id for tr in self.moving}
+            self.walkers = [tr for tr in tracks if tr.id in self._walked]
 
-    def stand(self, obs: Observation, v_m_s: float, w_rad_s: float) -> bool:
-        """True when the robot should stand this step instead of driving at ``v_m_s`` / ``w_rad_s``."""
-        if not self.on or v_m_s <= 0.0 or not self.moving:
+    def stand(self, obs: Observation, v_m_s: float, w_rad_s: float, forward_turn: bool = False) -> bool:
+        """True when the robot should stand this step instead of driving at ``v_m_s`` / ``w_rad_s``.
+        ``forward_turn`` (a car's :class:`ForwardTurn`, where it would otherwise stand): it goes only when
+        no moving track comes within ``FORWARD_TURN_MOVER_MARGIN_M`` more of either the arc or where it
+        stands over the horizon (a car turning forward where it used to stand met walkers the plain rule
+        let it drive past: contacts while moving 8 -> 17 in the walker yards)."""
+        if not self.on or v_m_s <= 0.0:
+            return False
+        if forward_turn and any(math.hypot(tr.x_m - obs.pose.x_m, tr.y_m - obs.pose.y_m) - tr.radius_m - self.spec.radius_m
+                                < FORWARD_TURN_WALKER_CLEAR_M for tr in self.walkers):
+            self.stops += 1
+            return True
+        if not self.moving:
             return False
         ts = np.arange(0.0, self.horizon_s + 1e-9, 0.1)
         s = max(v_m_s, abs(obs.speed_m_s)) * ts
@@ -441,14 +518,17 @@ class MoverGuard:
         first_go = first_stand = math.inf
         for tr in self.moving:
             ox, oy = tr.x_m + tr.vx_m_s * ts, tr.y_m + tr.vy_m_s * ts
-            lim = tr.radius_m + self.spec.radius_m + self.margin_m
+            lim = tr.radius_m + self.spec.radius_m + self.margin_m + (FORWARD_TURN_MOVER_MARGIN_M if forward_turn else 0.0)
             hit = np.flatnonzero(np.hypot(gx - ox, gy - oy) < lim)
             if len(hit):
                 first_go = min(first_go, float(ts[hit[0]]))
             hit = np.flatnonzero(np.hypot(hx - ox, hy - oy) < lim)
             if len(hit):
                 first_stand = min(first_stand, float(ts[hit[0]]))
-        stand = first_go < math.inf and first_go <= first_stand
+        if forward_turn:
+            stand = first_go < math.inf or first_stand < math.inf
+        else:
+            stand = first_go < math.inf and first_go <= first_stand
         self.stops += stand
         return stand
 
@@ -479,6 +559,6 @@ class WithMoverGuard:
             w = cmd.speed_m_s * math.tan(cmd.steer_rad) / spec.wheelbase_m
         else:
             w = cmd.yaw_rate_rad_s
-        if self.guard.stand(obs, cmd.speed_m_s, w):
+        if self.guard.stand(obs, cmd.speed_m_s, w, isinstance(cmd, ForwardTurn)):
             return DriveCommand(0.0, cmd.yaw_rate_rad_s, cmd.steer_rad)
         return cmd

@@ -30,7 +30,7 @@ import numpy as np
 from ..perception._tracking import Track
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._grid import OccupancyGrid
-from .base import DeadlineMissed, LocalView, MoverGuard, NoPathFound, RobotSpec, drive_command, local_view, way_blocked
+from .base import DeadlineMissed, ForwardTurn, LocalView, MoverGuard, NoPathFound, RobotSpec, drive_command, local_view, way_blocked
 
 __all__ = ["PathFollowerParams", "PathFollower", "FollowPathParams", "FollowPathPlanner"]
 
@@ -283,4 +283,7 @@ class FollowPathPlanner:
             v_r = 0.0
         # the view goes to drive_command only for a stop (the car's roll-out steering): driving, the check
         # above reaches further than drive_command's braking guard, which would only repeat it
-        return drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
+        cmd = drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
+        if isinstance(cmd, ForwardTurn) and self.movers.stand(obs, cmd.speed_m_s, cmd.speed_m_s * math.tan(cmd.steer_rad or 0.0) / spec.wheelbase_m, True):
+            return DriveCommand(0.0, 0.0, cmd.steer_rad)
+        return cmd
