@@ -29,11 +29,12 @@ import math
 import re
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 __all__ = ["main", "subcommand", "SUBCOMMANDS", "parse_goal", "build_parser", "finite_float", "positive_float",
            "positive_float_at_most", "DAY_S", "up_to_a_day", "nonneg_float", "positive_int", "nonneg_int", "int_in", "nonempty_text",
-           "unusable_out_dir"]
+           "unusable_out_dir", "unwritable_file"]
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -442,7 +443,6 @@ def clear_earlier_outputs(command: str, out: str, patterns: tuple[str, ...], qui
     """Remove the files matching ``patterns`` (globs: the files ``command`` writes) that an earlier run left
     in ``out``; other files are left alone. Why that failed, or None. Said on stderr unless ``quiet``: the
     names, or their count when there are more than eight."""
-    from pathlib import Path
 
     old: list[Path] = []  # in the order of ``patterns``, then by name
     for pat in patterns:
@@ -486,7 +486,6 @@ def unusable_out_dir(out: str) -> str | None:
     files), or None; made and tried here, before a long run, so that the run is not lost to a typo or to a
     read-only folder."""
     import tempfile
-    from pathlib import Path
 
     p = Path(out)
     if p.exists() and not p.is_dir():
@@ -503,10 +502,38 @@ def unusable_out_dir(out: str) -> str | None:
     return None
 
 
+def unwritable_file(p: Path) -> str | None:
+    """Why the file ``p`` cannot be written (without leaving anything behind; missing folders count as made),
+    or None if it can: checked before a long job, like :func:`unusable_out_dir` for a folder."""
+    import tempfile
+
+    if p.is_dir():
+        return "it is a directory"
+    parent = p.parent
+    anc = parent
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        return f"{anc} is not a directory"
+    try:
+        if anc == parent:
+            existed = p.exists()
+            with open(p, "ab"):
+                pass
+            if not existed:
+                p.unlink()
+        else:  # the missing folders will be made: this must be allowed where they start
+            tempfile.TemporaryDirectory(dir=anc).cleanup()
+    except OSError as e:
+        if isinstance(e, FileNotFoundError) and parent.is_dir():
+            return f"{parent} does not take new files ({e.strerror})"
+        return e.strerror or str(e)
+    return None
+
+
 def _report_write_failure(cmd: str, out: str, err: BaseException) -> int:
     """A run whose results could not all be written (disk full, read-only folder...): say so
     plainly and list what was kept, instead of a traceback."""
-    from pathlib import Path
 
     why = getattr(err, "strerror", None) or str(err)
     where = getattr(err, "filename", None)
@@ -532,7 +559,6 @@ def _sim_recordings(sc: Any, result: Any, out: str, with_link: bool) -> list:
     """recording.rrd (true pose and path, goals, walls) and, for firmware-in-the-loop runs (``with_link``:
     this run wrote link.tlog), link.rrd (what the robot reported over the radio: odometry, sonar, behaviour
     layer) for `rerun`."""
-    from pathlib import Path
 
     from .viz.recorder import VizUnavailable, record_run, record_tlog
 

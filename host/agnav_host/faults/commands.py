@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import subcommand
+from ..cli import subcommand, unwritable_file
 
 
 def _progress(i: int, n: int, name: str) -> None:
@@ -44,9 +44,7 @@ def _cmd_faults(ns: argparse.Namespace) -> int:
             print(f"{c.area:10s} {c.name}")
         return 0
     if ns.markdown:  # before the cases run (minutes for the whole suite), not after
-        from ..link.commands import _unwritable_reason
-
-        why = _unwritable_reason(Path(ns.markdown))
+        why = unwritable_file(Path(ns.markdown))
         if why:
             print(f"agnav faults: --markdown {ns.markdown}: cannot write there: {why}", file=sys.stderr)
             return 2

@@ -16,12 +16,11 @@ import re
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand, up_to_a_day
+from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand, unwritable_file, up_to_a_day
 from .config import CalibrationConfig, LinkConfig
 from .tlog import MAV_TYPE_GCS
 
@@ -59,39 +58,13 @@ class OutputError(Exception):
     """An output file that cannot be written (exit 1); the message names the path and the reason."""
 
 
-def _unwritable_reason(p: Path) -> str | None:
-    """Why ``p`` cannot be written (without leaving anything behind), or None if it can."""
-    if p.is_dir():
-        return "it is a directory"
-    parent = p.parent
-    anc = parent
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        return f"{anc} is not a directory"
-    try:
-        if anc == parent:
-            existed = p.exists()
-            with open(p, "ab"):
-                pass
-            if not existed:
-                p.unlink()
-        else:  # the missing folders will be made: this must be allowed where they start
-            tempfile.TemporaryDirectory(dir=anc).cleanup()
-    except OSError as e:
-        if isinstance(e, FileNotFoundError) and parent.is_dir():
-            return f"{parent} does not take new files ({e.strerror})"
-        return e.strerror or str(e)
-    return None
-
-
 def check_output(option: str, path: str | Path, suffixes: tuple[str, ...] = ()) -> Path:
     """Refuse an output path before any work: a wrong suffix is a usage error (ValueError, exit 2),
     a path that cannot be written an :class:`OutputError` (exit 1)."""
     p = Path(path)
     if suffixes and p.suffix.lower() not in suffixes:
         raise ValueError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}")
-    why = _unwritable_reason(p)
+    why = unwritable_file(p)
     if why:
         raise OutputError(f"{option} {path}: cannot write there: {why}")
     return p
@@ -551,7 +524,7 @@ def _cmd_calibrate(ns: argparse.Namespace) -> int:
         return 2
     if ns.plot_dir:  # before the link opens: a sweep's plot must not fail on a folder known to be unusable
         png = Path(ns.plot_dir) / f"calib_{'steer' if ns.table == 'steering' else 'speed'}.png"
-        why = _unwritable_reason(png)
+        why = unwritable_file(png)
         if why:
             raise OutputError(f"--plot-dir {ns.plot_dir}: cannot write there: {why}")
     ep = _open(ns, "calibrate", cfg)

@@ -643,16 +643,29 @@ class Endpoint:
             return s.get(timeout)
 
     def request(self, make: Callable[[], Any], types: Iterable[str] | str, predicate: Callable[[Any], bool] | None = None,
-                timeout: float = 1.0, retries: int = 3, what: str = "request") -> Any:
-        """Send ``make()`` and wait for a matching answer, resending up to ``retries`` times."""
+                timeout: float = 1.0, retries: int = 3, what: str = "request",
+                accept: Callable[[Any], bool] | None = None) -> Any:
+        """Send ``make()`` and wait for a matching answer, resending up to ``retries`` times.
+
+        ``accept``: a matching answer it refuses may be a late answer to an earlier try (a slow radio), so it
+        is waited past; only when the tries are used up is the last such answer returned (the caller tells
+        it from an accepted one)."""
+        other: Any = None
         with self.subscribe(types, predicate) as s:
             for _ in range(max(1, retries)):
                 if self._stop.is_set():
                     raise LinkTimeout(f"{what}: the link to {self.spec} was closed")
                 self.send(make())
-                m = s.get(timeout)
-                if m is not None:
-                    return m
+                end = time.monotonic() + timeout
+                while (left := end - time.monotonic()) > 0:
+                    m = s.get(left)
+                    if m is None:
+                        break
+                    if accept is None or accept(m):
+                        return m
+                    other = m
+        if other is not None:
+            return other
         if self._stop.is_set():
             raise LinkTimeout(f"{what}: the link to {self.spec} was closed")
         raise LinkTimeout(f"{what}: no answer from {self.spec} after {retries} x {timeout:.1f} s")

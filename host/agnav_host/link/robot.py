@@ -158,21 +158,12 @@ class AgnavRobot:
         slow radio), so it confirms nothing until the tries are used up: only then is it taken as the
         value the robot kept."""
         pid = _param_id(name)
-        other: Any = None
-        with self.ep.subscribe("PARAM_VALUE", lambda m: _pid(m) == name) as sub:
-            for _ in range(max(1, self.retries)):
-                self.ep.send(self.mav.param_set_encode(*self._tgt(), pid, float(value), MAV_PARAM_TYPE_INT32))
-                end = time.monotonic() + self.timeout_s
-                while (left := end - time.monotonic()) > 0:
-                    m = sub.get(left)
-                    if m is None:
-                        break
-                    if abs(float(m.param_value) - float(value)) <= 0.5:
-                        return float(m.param_value)
-                    other = m
-        if other is None:
-            raise LinkTimeout(f"param set {name}: no answer from {self.ep.spec} after {self.retries} x {self.timeout_s:.1f} s")
-        raise CommandFailed(f"param {name}: robot kept {other.param_value:g} (asked {value:g}; out of range?)")
+        m = self.ep.request(lambda: self.mav.param_set_encode(*self._tgt(), pid, float(value), MAV_PARAM_TYPE_INT32),
+                            "PARAM_VALUE", lambda m: _pid(m) == name, self.timeout_s, self.retries, f"param set {name}",
+                            accept=lambda m: abs(float(m.param_value) - float(value)) <= 0.5)
+        if abs(float(m.param_value) - float(value)) <= 0.5:
+            return float(m.param_value)
+        raise CommandFailed(f"param {name}: robot kept {m.param_value:g} (asked {value:g}; out of range?)")
 
     def param_list(self, timeout_s: float = 10.0, quiet_s: float = 0.5) -> dict[str, float]:
         """PARAM_REQUEST_LIST, then PARAM_REQUEST_READ by index for any the link lost.
