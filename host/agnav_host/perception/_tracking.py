@@ -188,67 +188,29 @@ class TrackerParams:
     max_shrink_m: float = math.inf
 
 
-class _KF:
-    """One track's constant-velocity Kalman filter state (x, y, vx, vy) and bookkeeping; predicted and
-    updated for all tracks at once by :func:`_predict_all` and :func:`_update_all`."""
-
-    def __init__(self, x: float, y: float, r: float, t: float, tid: int, meas_std: float) -> None:
-        self.x = np.array([x, y, 0.0, 0.0])
-        self.P = np.diag([meas_std**2, meas_std**2, 1.0, 1.0])
-        self.r, self.t0, self.t, self.id = r, t, t, tid
-        self.hits, self.misses = 1, 0
-        self.x0, self.y0, self.travel, self.t_seen = x, y, 0.0, t
-
-
-def _predict_all(tracks: list[_KF], t: float, q: float) -> tuple[FloatArray, FloatArray]:
-    """Predict every track to time ``t`` at once: constant velocity, white acceleration of std ``q`` (m/s^2).
-    Returns the predicted states (T, 4) and covariances (T, 4, 4), in the tracks' order."""
-    if not tracks:
-        return np.zeros((0, 4)), np.zeros((0, 4, 4))
-    dt = np.array([max(0.0, t - tr.t) for tr in tracks])
-    X = np.array([tr.x for tr in tracks])  # (T, 4)
-    P = np.array([tr.P for tr in tracks])  # (T, 4, 4)
-    F = np.broadcast_to(np.eye(4), (len(tracks), 4, 4)).copy()
-    F[:, 0, 2] = F[:, 1, 3] = dt
-    G = np.zeros((len(tracks), 4, 2))
-    G[:, 0, 0] = G[:, 1, 1] = 0.5 * dt * dt
-    G[:, 2, 0] = G[:, 3, 1] = dt
-    X = np.einsum("tij,tj->ti", F, X)
-    P = F @ P @ F.transpose(0, 2, 1) + G @ G.transpose(0, 2, 1) * q * q
-    for k, tr in enumerate(tracks):
-        tr.t, tr.x, tr.P = t, X[k], P[k]
-    return X, P
-
-
-def _update_all(tracks: list[_KF], clusters: list[Cluster], R: FloatArray) -> None:
-    """Kalman update of each track with its cluster's centre (position-only measurement, noise ``R``) and
-    radius (smoothed), all at once."""
-    if not tracks:
-        return
-    X = np.array([tr.x for tr in tracks])
-    P = np.array([tr.P for tr in tracks])
-    z = np.array([(c.x_m, c.y_m) for c in clusters])
-    K = P[:, :, :2] @ np.linalg.inv(P[:, :2, :2] + R)  # (M, 4, 2): position-only measurement
-    X = X + np.einsum("mij,mj->mi", K, z - X[:, :2])
-    P = P - K @ P[:, :2, :]
-    for k, (tr, c) in enumerate(zip(tracks, clusters)):
-        tr.x, tr.P = X[k], P[k]
-        tr.r = 0.7 * tr.r + 0.3 * c.radius_m
-        tr.hits += 1
-        tr.misses = 0
-        tr.t_seen = tr.t
-        tr.travel = max(tr.travel, math.hypot(tr.x[0] - tr.x0, tr.x[1] - tr.y0))
-
-
 class ObstacleTracker:
-    """Multi-object tracker over laser scans (module docstring). ``update(scan)`` returns the confirmed tracks."""
+    """Multi-object tracker over laser scans (module docstring). ``update(scan)`` returns the confirmed tracks.
+
+    The tracks' states live in arrays, one row per track: ``_X`` (x, y, vx, vy), ``_P`` the 4 x 4 covariances,
+    and beside them radius, clocks (last predicted, first seen, last seen), id, hit and miss counts, where the
+    track began and how far it has been from there. Every step predicts, gates and updates all rows at once."""
 
     def __init__(self, params: TrackerParams | None = None) -> None:
         self.params = params or TrackerParams()
         self.reset()
 
     def reset(self) -> None:
-        self._tracks: list[_KF] = []
+        self._X = np.zeros((0, 4))
+        self._P = np.zeros((0, 4, 4))
+        self._r = np.zeros(0)
+        self._t = np.zeros(0)  # the time each row is predicted to
+        self._t0 = np.zeros(0)  # first seen
+        self._t_seen = np.zeros(0)  # last seen
+        self._id = np.zeros(0, dtype=np.int64)
+        self._hits = np.zeros(0, dtype=np.int64)
+        self._misses = np.zeros(0, dtype=np.int64)
+        self._start = np.zeros((0, 2))  # where each track was first seen
+        self._travel = np.zeros(0)  # farthest from there so far
         self._next = 1
         self._last_t: float | None = None
         self.stale_scans = 0  # scans older than the last one processed, skipped
@@ -259,6 +221,74 @@ class ObstacleTracker:
         cl = clusters_from_scan(scan, p.cluster_gap_m, 2, p.max_radius_m)
         return self.update_clusters([c for c in cl if not c.cut], t)
 
+    def _predict(self, t: float) -> None:
+        """Every track to time ``t``: constant velocity, white acceleration of std ``accel_std_m_s2``."""
+        n = len(self._X)
+        if n == 0:
+            return
+        q = self.params.accel_std_m_s2
+        dt = np.maximum(0.0, t - self._t)
+        F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+        F[:, 0, 2] = F[:, 1, 3] = dt
+        G = np.zeros((n, 4, 2))
+        G[:, 0, 0] = G[:, 1, 1] = 0.5 * dt * dt
+        G[:, 2, 0] = G[:, 3, 1] = dt
+        self._X = np.einsum("tij,tj->ti", F, self._X)
+        self._P = F @ self._P @ F.transpose(0, 2, 1) + G @ G.transpose(0, 2, 1) * q * q
+        self._t = np.full(n, t)
+
+    def _associate(self, clusters: list[Cluster], R: FloatArray) -> tuple[list[int], list[int]]:
+        """Greedy nearest-neighbour association, best pairs first, every (track, cluster) pair gated at once:
+        (track rows, their clusters)."""
+        p = self.params
+        if len(self._X) == 0 or not clusters:
+            return [], []
+        X, P = self._X, self._P
+        cz = np.array([(c.x_m, c.y_m) for c in clusters])
+        cr = np.array([c.radius_m for c in clusters])
+        confirmed = self._hits >= p.confirm_hits
+        Si = np.linalg.inv(P[:, :2, :2] + R)  # (T, 2, 2)
+        dx = cz[None, :, 0] - X[:, None, 0]
+        dy = cz[None, :, 1] - X[:, None, 1]
+        # dz @ Si @ dz, term by term in the same order
+        m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
+              + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
+        ok = np.hypot(dx, dy) <= p.max_gate_m
+        sized = (self._r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= self._r[:, None] + p.max_grow_m)
+        ok &= ~confirmed[:, None] | sized
+        ok &= m2 <= p.gate_sigma**2
+        ii, jj = np.nonzero(ok)
+        rows: list[int] = []
+        cols: list[int] = []
+        taken_t: set[int] = set()
+        taken_c: set[int] = set()
+        for _, i, j in sorted(zip(m2[ii, jj].tolist(), ii.tolist(), jj.tolist())):
+            if i in taken_t or j in taken_c:
+                continue
+            taken_t.add(i)
+            taken_c.add(j)
+            rows.append(i)
+            cols.append(j)
+        return rows, cols
+
+    def _correct(self, rows: list[int], clusters: list[Cluster], R: FloatArray) -> None:
+        """Kalman update of the tracks in ``rows`` with their clusters' centres (position-only measurement,
+        noise ``R``) and radii (smoothed)."""
+        if not rows:
+            return
+        idx = np.array(rows)
+        X, P = self._X[idx], self._P[idx]
+        z = np.array([(c.x_m, c.y_m) for c in clusters])
+        K = P[:, :, :2] @ np.linalg.inv(P[:, :2, :2] + R)  # (M, 4, 2): position-only measurement
+        X = X + np.einsum("mij,mj->mi", K, z - X[:, :2])
+        self._X[idx] = X
+        self._P[idx] = P - K @ P[:, :2, :]
+        self._r[idx] = 0.7 * self._r[idx] + 0.3 * np.array([c.radius_m for c in clusters])
+        self._hits[idx] += 1
+        self._misses[idx] = 0
+        self._t_seen[idx] = self._t[idx]
+        self._travel[idx] = np.maximum(self._travel[idx], np.hypot(X[:, 0] - self._start[idx, 0], X[:, 1] - self._start[idx, 1]))
+
     def update_clusters(self, clusters: list[Cluster], t_s: float) -> list[Track]:
         """Fold one scan's clusters in at time ``t_s``; a scan older than the last one folded in (late,
         out of order) is skipped and counted in ``stale_scans``: predicting back in time would wind
@@ -268,56 +298,49 @@ class ObstacleTracker:
             self.stale_scans += 1
             return self.tracks()
         self._last_t = t_s
-        X, P = _predict_all(self._tracks, t_s, p.accel_std_m_s2)
+        self._predict(t_s)
         R = np.eye(2) * p.meas_std_m**2
-        used = set()
-        # greedy nearest-neighbour association, best pairs first; every (track, cluster) pair at once
-        pairs: list[tuple[float, int, int]] = []
-        if self._tracks and clusters:
-            cz = np.array([(c.x_m, c.y_m) for c in clusters])
-            cr = np.array([c.radius_m for c in clusters])
-            tr_r = np.array([tr.r for tr in self._tracks])
-            confirmed = np.array([tr.hits >= p.confirm_hits for tr in self._tracks])
-            Si = np.linalg.inv(P[:, :2, :2] + R)  # (T, 2, 2)
-            dx = cz[None, :, 0] - X[:, None, 0]
-            dy = cz[None, :, 1] - X[:, None, 1]
-            # dz @ Si @ dz, term by term in the same order
-            m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
-                  + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
-            ok = np.hypot(dx, dy) <= p.max_gate_m
-            sized = (tr_r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= tr_r[:, None] + p.max_grow_m)
-            ok &= ~confirmed[:, None] | sized
-            ok &= m2 <= p.gate_sigma**2
-            ii, jj = np.nonzero(ok)
-            pairs = list(zip(m2[ii, jj].tolist(), ii.tolist(), jj.tolist()))
-        done_t: dict[int, int] = {}  # track -> its cluster
-        for _, i, j in sorted(pairs):
-            if i in done_t or j in used:
-                continue
-            done_t[i] = j
-            used.add(j)
-        _update_all([self._tracks[i] for i in done_t], [clusters[j] for j in done_t.values()], R)
-        for i, tr in enumerate(self._tracks):
-            if i not in done_t:
-                tr.misses += 1
-        def keep(tr: _KF) -> bool:
-            if tr.hits < p.confirm_hits:  # tentative
-                return tr.misses <= min(p.max_misses, p.confirm_max_misses)
-            return t_s - tr.t_seen <= p.max_coast_s if p.max_coast_s > 0 else tr.misses <= p.max_misses
-
-        self._tracks = [tr for tr in self._tracks if keep(tr)]
-        for j, c in enumerate(clusters):
-            if j not in used:
-                self._tracks.append(_KF(c.x_m, c.y_m, c.radius_m, t_s, self._next, p.meas_std_m))
-                self._next += 1
+        rows, cols = self._associate(clusters, R)
+        self._correct(rows, [clusters[j] for j in cols], R)
+        missed = np.ones(len(self._X), dtype=bool)
+        missed[rows] = False
+        self._misses[missed] += 1
+        # tentative tracks go after a few misses; confirmed ones after max_coast_s unseen, or max_misses
+        tentative = self._hits < p.confirm_hits
+        keep_confirmed = (t_s - self._t_seen <= p.max_coast_s) if p.max_coast_s > 0 else (self._misses <= p.max_misses)
+        keep = np.where(tentative, self._misses <= min(p.max_misses, p.confirm_max_misses), keep_confirmed)
+        taken = set(cols)
+        new = [c for j, c in enumerate(clusters) if j not in taken]
+        self._keep_and_add(keep, new, t_s)
         return self.tracks()
 
+    def _keep_and_add(self, keep: npt.NDArray[np.bool_], new: list[Cluster], t: float) -> None:
+        """Drop the rows not kept and start a track for each cluster in ``new``."""
+        m = len(new)
+        xy = np.array([(c.x_m, c.y_m) for c in new]).reshape(m, 2)
+        X0 = np.zeros((m, 4))
+        X0[:, :2] = xy
+        v = self.params.meas_std_m**2
+        P0 = np.broadcast_to(np.diag([v, v, 1.0, 1.0]), (m, 4, 4))
+        ids = np.arange(self._next, self._next + m, dtype=np.int64)
+        self._next += m
+        self._X = np.concatenate((self._X[keep], X0))
+        self._P = np.concatenate((self._P[keep], P0))
+        self._r = np.concatenate((self._r[keep], [c.radius_m for c in new]))
+        self._t = np.concatenate((self._t[keep], np.full(m, t)))
+        self._t0 = np.concatenate((self._t0[keep], np.full(m, t)))
+        self._t_seen = np.concatenate((self._t_seen[keep], np.full(m, t)))
+        self._id = np.concatenate((self._id[keep], ids))
+        self._hits = np.concatenate((self._hits[keep], np.ones(m, dtype=np.int64)))
+        self._misses = np.concatenate((self._misses[keep], np.zeros(m, dtype=np.int64)))
+        self._start = np.concatenate((self._start[keep], xy))
+        self._travel = np.concatenate((self._travel[keep], np.zeros(m)))
+
     def tracks(self, confirmed_only: bool = True) -> list[Track]:
-        kept = [tr for tr in self._tracks if not confirmed_only or tr.hits >= self.params.confirm_hits]
-        if not kept:
+        sel = self._hits >= self.params.confirm_hits if confirmed_only else np.ones(len(self._X), dtype=bool)
+        if not sel.any():
             return []
-        X = np.array([tr.x for tr in kept])
-        P = np.array([tr.P for tr in kept])
+        X, P = self._X[sel], self._P[sel]
         # speed sigma along the velocity direction (isotropic fallback when at rest)
         sp = np.hypot(X[:, 2], X[:, 3])
         moving = sp > 1e-6
@@ -325,6 +348,9 @@ class ObstacleTracker:
         ux, uy = np.where(moving, X[:, 2] / n, 1.0), np.where(moving, X[:, 3] / n, 0.0)
         along = (ux * P[:, 2, 2] + uy * P[:, 3, 2]) * ux + (ux * P[:, 2, 3] + uy * P[:, 3, 3]) * uy
         sig = np.sqrt(np.maximum(np.where(moving, along, 0.5 * (P[:, 2, 2] + P[:, 3, 3])), 0.0)).tolist()
-        xs, covs = X.tolist(), P.tolist()
-        return [Track(tr.id, x[0], x[1], x[2], x[3], float(tr.r), sg, tuple(map(tuple, cv)), tr.t - tr.t0, tr.hits,
-                      tr.travel, tr.t - tr.t_seen) for tr, x, sg, cv in zip(kept, xs, sig, covs)]
+        age = (self._t[sel] - self._t0[sel]).tolist()
+        unseen = (self._t[sel] - self._t_seen[sel]).tolist()
+        return [Track(int(i), x[0], x[1], x[2], x[3], r, sg, tuple(map(tuple, cv)), a, int(h), tv, u)
+                for i, x, r, sg, cv, a, h, tv, u in zip(self._id[sel].tolist(), X.tolist(), self._r[sel].tolist(), sig,
+                                                       P.tolist(), age, self._hits[sel].tolist(),
+                                                       self._travel[sel].tolist(), unseen)]
