@@ -188,29 +188,42 @@ class TrackerParams:
     max_shrink_m: float = math.inf
 
 
+def _inv2(S: FloatArray) -> FloatArray:
+    """Inverses of a stack (n, 2, 2) of symmetric positive definite matrices (the innovation covariances):
+    in closed form, a tenth of the cost of ``np.linalg.inv`` on the few matrices of a scan."""
+    a, b, d = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
+    det = a * d - b * b
+    out = np.empty_like(S)
+    out[:, 0, 0] = d / det
+    out[:, 1, 1] = a / det
+    out[:, 0, 1] = out[:, 1, 0] = -b / det
+    return out
+
+
+# columns of ObstacleTracker._s, one row per track (floats), and of ObstacleTracker._n (integers)
+_X = slice(0, 4)  # state x, y (m), vx, vy (m/s), world frame
+_R, _T0, _SEEN = 4, 5, 6  # radius (m), first seen and last seen (s)
+_START = slice(7, 9)  # where the track was first seen (m)
+_TRAVEL = 9  # farthest the estimate has been from there (m)
+_ID, _HITS, _MISSES = 0, 1, 2
+
+
 class ObstacleTracker:
     """Multi-object tracker over laser scans (module docstring). ``update(scan)`` returns the confirmed tracks.
 
-    The tracks' states live in arrays, one row per track: ``_X`` (x, y, vx, vy), ``_P`` the 4 x 4 covariances,
-    and beside them radius, clocks (last predicted, first seen, last seen), id, hit and miss counts, where the
-    track began and how far it has been from there. Every step predicts, gates and updates all rows at once."""
+    The tracks live in arrays, one row per track: ``_s`` (state, radius, clocks, start, travel: the column
+    constants above), ``_n`` (id, hits, misses) and ``_P`` (4 x 4 covariances of the state). Every step
+    predicts, gates, corrects, drops and starts tracks on all rows at once; all rows are predicted to the
+    last scan's time."""
 
     def __init__(self, params: TrackerParams | None = None) -> None:
         self.params = params or TrackerParams()
         self.reset()
 
     def reset(self) -> None:
-        self._X = np.zeros((0, 4))
+        self._s = np.zeros((0, 10))
+        self._n = np.zeros((0, 3), dtype=np.int64)
         self._P = np.zeros((0, 4, 4))
-        self._r = np.zeros(0)
-        self._t = np.zeros(0)  # the time each row is predicted to
-        self._t0 = np.zeros(0)  # first seen
-        self._t_seen = np.zeros(0)  # last seen
-        self._id = np.zeros(0, dtype=np.int64)
-        self._hits = np.zeros(0, dtype=np.int64)
-        self._misses = np.zeros(0, dtype=np.int64)
-        self._start = np.zeros((0, 2))  # where each track was first seen
-        self._travel = np.zeros(0)  # farthest from there so far
         self._next = 1
         self._last_t: float | None = None
         self.stale_scans = 0  # scans older than the last one processed, skipped
@@ -221,40 +234,35 @@ class ObstacleTracker:
         cl = clusters_from_scan(scan, p.cluster_gap_m, 2, p.max_radius_m)
         return self.update_clusters([c for c in cl if not c.cut], t)
 
-    def _predict(self, t: float) -> None:
-        """Every track to time ``t``: constant velocity, white acceleration of std ``accel_std_m_s2``."""
-        n = len(self._X)
-        if n == 0:
+    def _predict(self, dt: float) -> None:
+        """Every track ``dt`` s on: constant velocity, white acceleration of std ``accel_std_m_s2``."""
+        if len(self._s) == 0 or dt <= 0.0:
             return
-        q = self.params.accel_std_m_s2
-        dt = np.maximum(0.0, t - self._t)
-        F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-        F[:, 0, 2] = F[:, 1, 3] = dt
-        G = np.zeros((n, 4, 2))
-        G[:, 0, 0] = G[:, 1, 1] = 0.5 * dt * dt
-        G[:, 2, 0] = G[:, 3, 1] = dt
-        self._X = np.einsum("tij,tj->ti", F, self._X)
-        self._P = F @ self._P @ F.transpose(0, 2, 1) + G @ G.transpose(0, 2, 1) * q * q
-        self._t = np.full(n, t)
+        qq = self.params.accel_std_m_s2**2
+        F = np.array([[1.0, 0.0, dt, 0.0], [0.0, 1.0, 0.0, dt], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+        a, b, c = 0.25 * dt**4 * qq, 0.5 * dt**3 * qq, dt * dt * qq  # G G^T q^2, G = (dt^2/2, dt^2/2, dt, dt)
+        Q = np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
+        self._s[:, _X] = self._s[:, _X] @ F.T
+        self._P = F @ self._P @ F.T + Q
 
     def _associate(self, clusters: list[Cluster], R: FloatArray) -> tuple[list[int], list[int]]:
         """Greedy nearest-neighbour association, best pairs first, every (track, cluster) pair gated at once:
         (track rows, their clusters)."""
         p = self.params
-        if len(self._X) == 0 or not clusters:
+        if len(self._s) == 0 or not clusters:
             return [], []
-        X, P = self._X, self._P
+        X, P, r = self._s[:, _X], self._P, self._s[:, _R]
         cz = np.array([(c.x_m, c.y_m) for c in clusters])
         cr = np.array([c.radius_m for c in clusters])
-        confirmed = self._hits >= p.confirm_hits
-        Si = np.linalg.inv(P[:, :2, :2] + R)  # (T, 2, 2)
+        confirmed = self._n[:, _HITS] >= p.confirm_hits
+        Si = _inv2(P[:, :2, :2] + R)  # (T, 2, 2)
         dx = cz[None, :, 0] - X[:, None, 0]
         dy = cz[None, :, 1] - X[:, None, 1]
         # dz @ Si @ dz, term by term in the same order
         m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
               + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
         ok = np.hypot(dx, dy) <= p.max_gate_m
-        sized = (self._r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= self._r[:, None] + p.max_grow_m)
+        sized = (r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r[:, None] + p.max_grow_m)
         ok &= ~confirmed[:, None] | sized
         ok &= m2 <= p.gate_sigma**2
         ii, jj = np.nonzero(ok)
@@ -271,23 +279,23 @@ class ObstacleTracker:
             cols.append(j)
         return rows, cols
 
-    def _correct(self, rows: list[int], clusters: list[Cluster], R: FloatArray) -> None:
+    def _correct(self, rows: list[int], clusters: list[Cluster], R: FloatArray, t: float) -> None:
         """Kalman update of the tracks in ``rows`` with their clusters' centres (position-only measurement,
-        noise ``R``) and radii (smoothed)."""
+        noise ``R``) and radii (smoothed), seen at ``t``."""
         if not rows:
             return
         idx = np.array(rows)
-        X, P = self._X[idx], self._P[idx]
+        s, P = self._s[idx], self._P[idx]
         z = np.array([(c.x_m, c.y_m) for c in clusters])
-        K = P[:, :, :2] @ np.linalg.inv(P[:, :2, :2] + R)  # (M, 4, 2): position-only measurement
-        X = X + np.einsum("mij,mj->mi", K, z - X[:, :2])
-        self._X[idx] = X
+        K = P[:, :, :2] @ _inv2(P[:, :2, :2] + R)  # (M, 4, 2): position-only measurement
+        s[:, _X] += np.einsum("mij,mj->mi", K, z - s[:, :2])
+        s[:, _R] = 0.7 * s[:, _R] + 0.3 * np.array([c.radius_m for c in clusters])
+        s[:, _SEEN] = t
+        s[:, _TRAVEL] = np.maximum(s[:, _TRAVEL], np.hypot(s[:, 0] - s[:, _START.start], s[:, 1] - s[:, _START.start + 1]))
+        self._s[idx] = s
         self._P[idx] = P - K @ P[:, :2, :]
-        self._r[idx] = 0.7 * self._r[idx] + 0.3 * np.array([c.radius_m for c in clusters])
-        self._hits[idx] += 1
-        self._misses[idx] = 0
-        self._t_seen[idx] = self._t[idx]
-        self._travel[idx] = np.maximum(self._travel[idx], np.hypot(X[:, 0] - self._start[idx, 0], X[:, 1] - self._start[idx, 1]))
+        self._n[idx, _HITS] += 1
+        self._n[idx, _MISSES] = 0
 
     def update_clusters(self, clusters: list[Cluster], t_s: float) -> list[Track]:
         """Fold one scan's clusters in at time ``t_s``; a scan older than the last one folded in (late,
@@ -297,60 +305,58 @@ class ObstacleTracker:
         if self._last_t is not None and t_s < self._last_t:
             self.stale_scans += 1
             return self.tracks()
+        self._predict(0.0 if self._last_t is None else t_s - self._last_t)
         self._last_t = t_s
-        self._predict(t_s)
         R = np.eye(2) * p.meas_std_m**2
         rows, cols = self._associate(clusters, R)
-        self._correct(rows, [clusters[j] for j in cols], R)
-        missed = np.ones(len(self._X), dtype=bool)
+        self._correct(rows, [clusters[j] for j in cols], R, t_s)
+        missed = np.ones(len(self._s), dtype=bool)
         missed[rows] = False
-        self._misses[missed] += 1
+        self._n[missed, _MISSES] += 1
         # tentative tracks go after a few misses; confirmed ones after max_coast_s unseen, or max_misses
-        tentative = self._hits < p.confirm_hits
-        keep_confirmed = (t_s - self._t_seen <= p.max_coast_s) if p.max_coast_s > 0 else (self._misses <= p.max_misses)
-        keep = np.where(tentative, self._misses <= min(p.max_misses, p.confirm_max_misses), keep_confirmed)
+        misses = self._n[:, _MISSES]
+        if p.max_coast_s > 0:
+            keep_confirmed = t_s - self._s[:, _SEEN] <= p.max_coast_s
+        else:
+            keep_confirmed = misses <= p.max_misses
+        keep = np.where(self._n[:, _HITS] < p.confirm_hits, misses <= min(p.max_misses, p.confirm_max_misses), keep_confirmed)
         taken = set(cols)
-        new = [c for j, c in enumerate(clusters) if j not in taken]
-        self._keep_and_add(keep, new, t_s)
+        self._keep_and_start(keep, [c for j, c in enumerate(clusters) if j not in taken], t_s)
         return self.tracks()
 
-    def _keep_and_add(self, keep: npt.NDArray[np.bool_], new: list[Cluster], t: float) -> None:
-        """Drop the rows not kept and start a track for each cluster in ``new``."""
+    def _keep_and_start(self, keep: npt.NDArray[np.bool_], new: list[Cluster], t: float) -> None:
+        """Drop the rows not kept and start a track for each cluster in ``new``, seen at ``t``."""
+        if not new:
+            if not keep.all():
+                self._s, self._n, self._P = self._s[keep], self._n[keep], self._P[keep]
+            return
         m = len(new)
-        xy = np.array([(c.x_m, c.y_m) for c in new]).reshape(m, 2)
-        X0 = np.zeros((m, 4))
-        X0[:, :2] = xy
-        v = self.params.meas_std_m**2
-        P0 = np.broadcast_to(np.diag([v, v, 1.0, 1.0]), (m, 4, 4))
-        ids = np.arange(self._next, self._next + m, dtype=np.int64)
+        s0 = np.zeros((m, 10))
+        s0[:, :2] = s0[:, _START] = [(c.x_m, c.y_m) for c in new]
+        s0[:, _R] = [c.radius_m for c in new]
+        s0[:, _T0] = s0[:, _SEEN] = t
+        n0 = np.zeros((m, 3), dtype=np.int64)
+        n0[:, _ID] = np.arange(self._next, self._next + m)
+        n0[:, _HITS] = 1
         self._next += m
-        self._X = np.concatenate((self._X[keep], X0))
-        self._P = np.concatenate((self._P[keep], P0))
-        self._r = np.concatenate((self._r[keep], [c.radius_m for c in new]))
-        self._t = np.concatenate((self._t[keep], np.full(m, t)))
-        self._t0 = np.concatenate((self._t0[keep], np.full(m, t)))
-        self._t_seen = np.concatenate((self._t_seen[keep], np.full(m, t)))
-        self._id = np.concatenate((self._id[keep], ids))
-        self._hits = np.concatenate((self._hits[keep], np.ones(m, dtype=np.int64)))
-        self._misses = np.concatenate((self._misses[keep], np.zeros(m, dtype=np.int64)))
-        self._start = np.concatenate((self._start[keep], xy))
-        self._travel = np.concatenate((self._travel[keep], np.zeros(m)))
+        v = self.params.meas_std_m**2
+        self._s = np.concatenate((self._s[keep], s0))
+        self._n = np.concatenate((self._n[keep], n0))
+        self._P = np.concatenate((self._P[keep], np.broadcast_to(np.diag([v, v, 1.0, 1.0]), (m, 4, 4))))
 
     def tracks(self, confirmed_only: bool = True) -> list[Track]:
-        sel = self._hits >= self.params.confirm_hits if confirmed_only else np.ones(len(self._X), dtype=bool)
+        sel = self._n[:, _HITS] >= self.params.confirm_hits if confirmed_only else np.ones(len(self._s), dtype=bool)
         if not sel.any():
             return []
-        X, P = self._X[sel], self._P[sel]
+        s, n, P = self._s[sel], self._n[sel], self._P[sel]
         # speed sigma along the velocity direction (isotropic fallback when at rest)
-        sp = np.hypot(X[:, 2], X[:, 3])
+        sp = np.hypot(s[:, 2], s[:, 3])
         moving = sp > 1e-6
-        n = np.where(moving, sp, 1.0)
-        ux, uy = np.where(moving, X[:, 2] / n, 1.0), np.where(moving, X[:, 3] / n, 0.0)
+        k = np.where(moving, sp, 1.0)
+        ux, uy = np.where(moving, s[:, 2] / k, 1.0), np.where(moving, s[:, 3] / k, 0.0)
         along = (ux * P[:, 2, 2] + uy * P[:, 3, 2]) * ux + (ux * P[:, 2, 3] + uy * P[:, 3, 3]) * uy
         sig = np.sqrt(np.maximum(np.where(moving, along, 0.5 * (P[:, 2, 2] + P[:, 3, 3])), 0.0)).tolist()
-        age = (self._t[sel] - self._t0[sel]).tolist()
-        unseen = (self._t[sel] - self._t_seen[sel]).tolist()
-        return [Track(int(i), x[0], x[1], x[2], x[3], r, sg, tuple(map(tuple, cv)), a, int(h), tv, u)
-                for i, x, r, sg, cv, a, h, tv, u in zip(self._id[sel].tolist(), X.tolist(), self._r[sel].tolist(), sig,
-                                                       P.tolist(), age, self._hits[sel].tolist(),
-                                                       self._travel[sel].tolist(), unseen)]
+        now = self._last_t if self._last_t is not None else 0.0
+        return [Track(i, x, y, vx, vy, r, sg, tuple(map(tuple, cv)), now - t0, h, tv, now - seen)
+                for (x, y, vx, vy, r, t0, seen, _sx, _sy, tv), (i, h, _m), sg, cv
+                in zip(s.tolist(), n.tolist(), sig, P.tolist())]
