@@ -493,15 +493,16 @@ class MoverGuard:
         if self.on and obs.scan is not None and obs.scan.pose is not None:
             tracks = self.tracker.update(obs.scan, obs.t_s)
             self.moving = [tr for tr in tracks if tr.moving]
-            self._walked |= {tr.id for tr in self.moving}
+            self._walked = (self._walked | {tr.id for tr in self.moving}) & {tr.id for tr in tracks}  # dropped ids never return
             self.walkers = [tr for tr in tracks if tr.id in self._walked]
 
     def stand(self, obs: Observation, v_m_s: float, w_rad_s: float, forward_turn: bool = False) -> bool:
         """True when the robot should stand this step instead of driving at ``v_m_s`` / ``w_rad_s``.
         ``forward_turn`` (a car's :class:`ForwardTurn`, where it would otherwise stand): it goes only when
         no moving track comes within ``FORWARD_TURN_MOVER_MARGIN_M`` more of either the arc or where it
-        stands over the horizon (a car turning forward where it used to stand met walkers the plain rule
-        let it drive past: contacts while moving 8 -> 17 in the walker yards)."""
+        stands over the horizon, and no track that has ever moved is within ``FORWARD_TURN_WALKER_CLEAR_M``
+        now (a car turning forward where it used to stand met walkers the plain rule let it drive past:
+        contacts while moving 8 -> 17 in the walker yards; three of them beside a walker turning round)."""
         if not self.on or v_m_s <= 0.0:
             return False
         if forward_turn and any(math.hypot(tr.x_m - obs.pose.x_m, tr.y_m - obs.pose.y_m) - tr.radius_m - self.spec.radius_m
