@@ -302,8 +302,12 @@ def test_a_car_told_to_stop_does_not_steer_its_roll_out_into_a_box():
     assert drive_command(CAR_SPEC, 0.0, -1.2, box).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)
     cmd = drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.5, 0.0))
     assert cmd.speed_m_s == 0.0 and cmd.steer_rad == pytest.approx(0.0)
-    # standing still there is no roll-out: the steering asked for is kept
-    assert drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.0, 0.0)).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)
+    # standing still there is no roll-out: the steering asked for is kept while the car stands (a box on the
+    # other side too); with that side free it turns forward the other way round
+    boxes = _view((0.25, -0.22), (0.25, 0.22))
+    assert drive_command(CAR_SPEC, 0.0, -1.2, boxes, _rolling(0.0, 0.0)).steer_rad == pytest.approx(-CAR_SPEC.max_steer_rad)
+    other_way = drive_command(CAR_SPEC, 0.0, -1.2, box, _rolling(0.0, 0.0))
+    assert other_way.speed_m_s > 0.0 and other_way.steer_rad == pytest.approx(CAR_SPEC.max_steer_rad)
 
 
 def test_a_car_rolling_one_way_does_not_swing_its_wheels_across_a_box():
@@ -323,9 +327,13 @@ def test_a_car_drives_forward_where_it_cannot_turn_on_the_spot():
     standing = _rolling(0.0, 0.0)  # the goal 5 m ahead
     cmd = drive_command(CAR_SPEC, 0.0, 1.2, _view((3.0, -3.0)), standing)
     assert cmd.speed_m_s == pytest.approx(CAR_SPEC.min_speed_m_s) and cmd.steer_rad == pytest.approx(lock)
-    # a post on the left full-lock arc: it stands (and steers), as before
+    # a post on the left full-lock arc: it turns forward the other way round (right lock), standing only; with
+    # posts on both arcs it stands (and steers as asked)
     post = drive_command(CAR_SPEC, 0.0, 1.2, _view((0.3, 0.25)), standing)
-    assert post.speed_m_s == 0.0 and post.steer_rad == pytest.approx(lock)
+    assert post.speed_m_s == pytest.approx(CAR_SPEC.min_speed_m_s) and post.steer_rad == pytest.approx(-lock)
+    assert drive_command(CAR_SPEC, 0.0, 1.2, _view((0.3, 0.25)), _rolling(0.5, 0.0)).speed_m_s == 0.0  # rolling: stops
+    posts = drive_command(CAR_SPEC, 0.0, 1.2, _view((0.3, 0.25), (0.3, -0.25)), standing)
+    assert posts.speed_m_s == 0.0 and posts.steer_rad == pytest.approx(lock)
     # on the goal (turning to its heading) or without its obstacle points it stands
     at_goal = Observation(0.0, Pose2D(5.0, 0.0, 0.0), 0.0, 0.0, Goal(5.0, 0.0), None, None, {})
     assert drive_command(CAR_SPEC, 0.0, 1.2, _view((3.0, -3.0)), at_goal).speed_m_s == 0.0
@@ -347,7 +355,7 @@ def test_forward_turn_is_a_drive_command_marked_for_the_mover_guard():
     assert isinstance(drive_command(CAR_SPEC, 0.0, 1.2, _view((3.0, -3.0)), standing), ForwardTurn)
     # a car asked to drive, or one standing by a post: plain commands
     assert type(drive_command(CAR_SPEC, 0.5, 1.2, _view((3.0, -3.0)), standing)) is DriveCommand
-    assert type(drive_command(CAR_SPEC, 0.0, 1.2, _view((0.3, 0.25)), standing)) is DriveCommand
+    assert type(drive_command(CAR_SPEC, 0.0, 1.2, _view((0.3, 0.25), (0.3, -0.25)), standing)) is DriveCommand
 
 
 def test_mover_guard_lets_a_forward_turn_go_only_well_clear_of_walkers():

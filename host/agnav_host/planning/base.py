@@ -153,7 +153,8 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
     the angle, a stop steering like a slow forward move; reversing, the angle changes sign so that the
     yaw rate keeps the asked sign), and a forward speed is at least ``min_speed_m_s``. A turn on the spot
     (speed 0, yaw rate at least TURN_ON_SPOT_RAD_S) is driven forward at the slowest speed and full lock
-    when that arc is clear (:func:`_forward_turn_clear`); else the car stands.
+    when that arc is clear, from standing the other way round when only that is (:func:`_forward_turn_side`),
+    as a :class:`ForwardTurn`; else the car stands.
 
     ``view`` (the planner's obstacle points): braking guard. When a point lies in the footprint's way
     along the arc the command drives, within the stopping distance (one control period plus the drive's
@@ -169,9 +170,9 @@ def drive_command(spec: RobotSpec, speed_m_s: float, yaw_rate_rad_s: float, view
         if view is not None and v > 0.0 and _brake_now(spec, view, v, w / v, obs):
             v = 0.0
         return DriveCommand(v, w)
-    turn = v == 0.0 and abs(w) >= TURN_ON_SPOT_RAD_S and _forward_turn_clear(spec, w, view, obs)
+    turn = _forward_turn_side(spec, w, view, obs) if v == 0.0 and abs(w) >= TURN_ON_SPOT_RAD_S else 0.0
     if turn:
-        v, steer = spec.min_speed_m_s, math.copysign(spec.max_steer_rad, w)
+        v, steer = spec.min_speed_m_s, math.copysign(spec.max_steer_rad, turn)
     else:
         if v > 0.0:
             v = max(v, spec.min_speed_m_s)
@@ -202,6 +203,17 @@ FORWARD_TURN_WALKER_CLEAR_M = 1.5
 #: ... when the full-lock arc is clear this far beyond the stopping distance at the slowest speed (m): a turn
 #: begun only to be stopped a step later (the next point in the way) leaves the car rolling into it
 FORWARD_TURN_CLEAR_M = 0.3
+
+
+def _forward_turn_side(spec: RobotSpec, w: float, view: "LocalView | None", obs: Observation | None) -> float:
+    """Which way (+1 left, -1 right, 0 none) a car drives a wish to turn on the spot at yaw rate ``w``: forward
+    at full lock that way when it is clear (:func:`_forward_turn_clear`); from standing, the other way round
+    when only that is (a loop to the same heading: the car used to stand there until the run timed out)."""
+    if _forward_turn_clear(spec, w, view, obs):
+        return math.copysign(1.0, w)
+    if obs is not None and abs(obs.speed_m_s) <= 0.1 and _forward_turn_clear(spec, -w, view, obs):
+        return -math.copysign(1.0, w)
+    return 0.0
 
 
 def _forward_turn_clear(spec: RobotSpec, w: float, view: "LocalView | None", obs: Observation | None) -> bool:
