@@ -5,7 +5,7 @@ Runs the ``timed`` planner (which runs perception's ``ObstacleTracker`` on its o
 the built-in timed scenarios in the world simulator, and at every control step compares each track the
 planner uses as *moving* with the scenario's walkers at that time.
 
-    .venv/bin/python bench/bench_tracker.py [--seeds 3]
+    .venv/bin/python bench/bench_tracker.py [--seeds 3] [--reacquire 0.8]
     .venv/bin/python bench/bench_tracker.py --timing    # only the cost of one tracker update per scan
 
 *Timing*: median wall time of ``ObstacleTracker.update`` (clustering, association, Kalman filters, the track
@@ -17,12 +17,15 @@ Columns: *moving reports* = moving tracks summed over the control steps; *off a 
 0.5 m from every walker's true position, split into tracks seen in that scan (a phantom: a static object
 taken for a moving one) and coasting tracks (unseen for up to 1 s, predicted on their velocity: a walker
 that turned or stopped at the end of its path). Coasting predictions are expected; phantoms are the
-defect this measures. Scenarios without walkers can only have phantoms.
+defect this measures. Scenarios without walkers can only have phantoms. ``--reacquire M`` sets the tracker's
+``reacquire_m`` (a walker track missed in a scan takes a free cluster within M of where it was last seen:
+one who turned round) on the planner's tracker, to compare.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import platform
@@ -40,10 +43,19 @@ SCENARIOS = ("timed_static", "timed_dynamic", "timed_delay", "timed_gap", "timed
 OFF_M = 0.5
 
 
-def count(name: str, seed: int) -> tuple[str, int, int, int]:
+def count(name: str, seed: int, reacquire_m: float = 0.0) -> tuple[str, int, int, int]:
     """(end reason, moving reports, phantoms seen now, coasting off a walker) of one run."""
     sc = load_scenario(name)
     ctrl = _make_controller(sc, "timed")
+    if reacquire_m > 0.0:  # on the tracker that reset() makes
+        reset = ctrl.reset
+
+        def reset_reacquiring() -> None:
+            reset()
+            ctrl.tracker.params = dataclasses.replace(ctrl.tracker.params, reacquire_m=reacquire_m)
+
+        ctrl.reset = reset_reacquiring  # type: ignore[method-assign]
+        reset_reacquiring()
     movers = list(getattr(sc.world, "movers", []))
     n = [0, 0, 0]
     step = ctrl.step
@@ -91,9 +103,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1 per scenario (default 3)")
     ap.add_argument("--timing", action="store_true", help="only the cost of one tracker update per scan")
+    ap.add_argument("--reacquire", type=float, default=0.0, metavar="M",
+                    help="the tracker's reacquire_m, m (default 0: off, as the planners run it)")
     ns = ap.parse_args(argv)
     if ns.seeds < 1:
         ap.error("--seeds must be >= 1")
+    if not (math.isfinite(ns.reacquire) and 0.0 <= ns.reacquire <= 5.0):
+        ap.error(f"--reacquire must be 0-5 m, got {ns.reacquire:g}")
     t0 = time.time()
     if ns.timing:
         print(f"# obstacle tracker update per scan ({platform.python_implementation()} {platform.python_version()}, "
@@ -106,12 +122,12 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout.flush()
         return 0
     print(f"# obstacle tracker in the timed planner ({platform.python_implementation()} {platform.python_version()}), "
-          f"seeds 0-{ns.seeds - 1}\n")
+          f"seeds 0-{ns.seeds - 1}{f', reacquire_m {ns.reacquire:g}' if ns.reacquire > 0 else ''}\n")
     print("| scenario | walkers | runs arrived | moving reports | phantoms (seen now, > 0.5 m off every walker) | coasting predictions > 0.5 m off |")
     print("|---|---|---|---|---|---|")
     total_ph = 0
     for name in SCENARIOS:
-        rows = [count(name, s) for s in range(ns.seeds)]
+        rows = [count(name, s, ns.reacquire) for s in range(ns.seeds)]
         total_ph += sum(r[2] for r in rows)
         walkers = len(getattr(load_scenario(name).world, "movers", []))
         print(f"| {name} | {walkers} | {sum(r[0] == 'arrived' for r in rows)}/{len(rows)} | {sum(r[1] for r in rows)} | "

@@ -180,3 +180,37 @@ def test_a_large_box_passed_fast_stays_static(yaw_deg):
         seen = _drive_past(w, t_end=6.0, speed=2.0)
         assert any(tracks for tracks in seen)
         assert not any(t.moving for tracks in seen for t in tracks), f"box {lateral} m beside the route"
+
+
+def _pacing_walker_tracks(params, seconds=7.5):
+    """A walker pacing 3 m up and down a line 3 m ahead of a standing robot at 1 m/s (turning round at t = 3
+    and 6 s): per scan time, the moving tracks (id, vy)."""
+    w = World(movers=[Mover(0.25, 1.0, ((3.0, -1.5), (3.0, 1.5)), loop=True)])
+    las = Laser2D(laser_preset("tim310"))
+    tr = ObstacleTracker(params)
+    rng = np.random.default_rng(3)
+    out = []
+    for k in range(int(seconds * 20)):
+        t = k / 20.0
+        out.append((t, [(m.id, m.vy_m_s) for m in tr.update(las.scan(w, Pose2D(), t, rng), t) if m.moving]))
+    return out
+
+
+def _turned(t, moving):
+    """Only tracks going the walker's new way (down after 3 s, up after 6 s)."""
+    down = t < 6.0
+    return bool(moving) and all(vy < -0.3 if down else vy > 0.3 for _, vy in moving)
+
+
+def test_a_walker_turning_round_is_picked_up_again_by_its_own_track():
+    base = dict(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15)
+    windows = lambda t: 3.15 <= t <= 4.0 or 6.15 <= t <= 7.0  # noqa: E731
+    # without re-acquisition the track coasts on the old way for its second while the walker, on a new track,
+    # shows as moving only after half a second
+    plain = _pacing_walker_tracks(TrackerParams(**base))
+    assert sum(not _turned(t, mv) for t, mv in plain if windows(t)) >= 20
+    assert len({i for _, mv in plain for i, _ in mv}) >= 3
+    # with it, the same track turns with the walker at the next scan or two
+    again = _pacing_walker_tracks(TrackerParams(**base, reacquire_m=0.8))
+    assert all(_turned(t, mv) for t, mv in again if windows(t)), [(t, mv) for t, mv in again if windows(t) and not _turned(t, mv)]
+    assert {i for _, mv in again for i, _ in mv} == {1}

@@ -186,6 +186,13 @@ class TrackerParams:
     # ... nor one this much smaller: a two-point fragment of a box face is not the face the track has
     # followed, and its centre lies elsewhere (taken, it gave a static face a velocity)
     max_shrink_m: float = math.inf
+    # > 0: a confirmed track that has travelled (a walker) and is missed this scan takes a free cluster within
+    # this distance of where it was last seen, restarting its velocity from that displacement: a walker who
+    # turns round leaves the gate of its own prediction (which coasts on the old way) and was otherwise
+    # only found again as a new track, "moving" after some 0.8 s. 0: off
+    reacquire_m: float = 0.0
+    reacquire_speed_std_m_s: float = 0.3  # the restarted velocity's uncertainty
+    max_speed_m_s: float = 2.5  # ... capped at this speed
 
 
 def _inv2(S: FloatArray) -> FloatArray:
@@ -205,6 +212,8 @@ _X = slice(0, 4)  # state x, y (m), vx, vy (m/s), world frame
 _R, _T0, _SEEN = 4, 5, 6  # radius (m), first seen and last seen (s)
 _START = slice(7, 9)  # where the track was first seen (m)
 _TRAVEL = 9  # farthest the estimate has been from there (m)
+_SEEN_XY = slice(10, 12)  # the position it was last seen at (m)
+_WIDTH = 12
 _ID, _HITS, _MISSES = 0, 1, 2
 
 
@@ -221,7 +230,7 @@ class ObstacleTracker:
         self.reset()
 
     def reset(self) -> None:
-        self._s = np.zeros((0, 10))
+        self._s = np.zeros((0, _WIDTH))
         self._n = np.zeros((0, 3), dtype=np.int64)
         self._P = np.zeros((0, 4, 4))
         self._next = 1
@@ -291,6 +300,7 @@ class ObstacleTracker:
         s[:, _X] += np.einsum("mij,mj->mi", K, z - s[:, :2])
         s[:, _R] = 0.7 * s[:, _R] + 0.3 * np.array([c.radius_m for c in clusters])
         s[:, _SEEN] = t
+        s[:, _SEEN_XY] = z
         s[:, _TRAVEL] = np.maximum(s[:, _TRAVEL], np.hypot(s[:, 0] - s[:, _START.start], s[:, 1] - s[:, _START.start + 1]))
         self._s[idx] = s
         self._P[idx] = P - K @ P[:, :2, :]
@@ -310,6 +320,9 @@ class ObstacleTracker:
         R = np.eye(2) * p.meas_std_m**2
         rows, cols = self._associate(clusters, R)
         self._correct(rows, [clusters[j] for j in cols], R, t_s)
+        if p.reacquire_m > 0.0:
+            more_rows, more_cols = self._reacquire(clusters, rows, cols, t_s)
+            rows, cols = rows + more_rows, cols + more_cols
         missed = np.ones(len(self._s), dtype=bool)
         missed[rows] = False
         self._n[missed, _MISSES] += 1
@@ -324,6 +337,52 @@ class ObstacleTracker:
         self._keep_and_start(keep, [c for j, c in enumerate(clusters) if j not in taken], t_s)
         return self.tracks()
 
+    def _reacquire(self, clusters: list[Cluster], rows: list[int], cols: list[int], t: float) -> tuple[list[int], list[int]]:
+        """Confirmed tracks that have travelled (``Track.MIN_TRAVEL_M`` or their radius) and were missed this
+        scan take the nearest free cluster of about their size within ``reacquire_m`` of where they were last
+        seen, greedily; each restarts there with the velocity of that displacement (capped at
+        ``max_speed_m_s``, uncertainty ``reacquire_speed_std_m_s``). Returns (rows, clusters) taken."""
+        p = self.params
+        free = sorted(set(range(len(clusters))) - set(cols))
+        if not free or len(self._s) == 0:
+            return [], []
+        s = self._s
+        walker = ((self._n[:, _HITS] >= p.confirm_hits) & (s[:, _TRAVEL] >= np.maximum(Track.MIN_TRAVEL_M, s[:, _R]))
+                  & (s[:, _SEEN] < t))
+        walker[rows] = False
+        cand = np.flatnonzero(walker)
+        if len(cand) == 0:
+            return [], []
+        cz = np.array([(clusters[j].x_m, clusters[j].y_m) for j in free])
+        cr = np.array([clusters[j].radius_m for j in free])
+        d = np.hypot(cz[None, :, 0] - s[cand, 10][:, None], cz[None, :, 1] - s[cand, 11][:, None])  # from where last seen
+        r = s[cand, _R][:, None]
+        ok = (d <= p.reacquire_m) & (r - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r + p.max_grow_m)
+        ii, jj = np.nonzero(ok)
+        out_rows: list[int] = []
+        out_cols: list[int] = []
+        for _, i, j in sorted(zip(d[ii, jj].tolist(), ii.tolist(), jj.tolist())):
+            row, col = int(cand[i]), free[j]
+            if row in out_rows or col in out_cols:
+                continue
+            out_rows.append(row)
+            out_cols.append(col)
+            c = clusters[col]
+            v = (np.array([c.x_m, c.y_m]) - s[row, _SEEN_XY]) / max(t - s[row, _SEEN], 1e-3)
+            sp = float(np.hypot(v[0], v[1]))
+            if sp > p.max_speed_m_s:
+                v *= p.max_speed_m_s / sp
+            s[row, _X] = (c.x_m, c.y_m, v[0], v[1])
+            s[row, _R] = 0.7 * s[row, _R] + 0.3 * c.radius_m
+            s[row, _SEEN] = t
+            s[row, _SEEN_XY] = (c.x_m, c.y_m)
+            s[row, _TRAVEL] = max(s[row, _TRAVEL], float(np.hypot(c.x_m - s[row, 7], c.y_m - s[row, 8])))
+            vm, vv = p.meas_std_m**2, p.reacquire_speed_std_m_s**2
+            self._P[row] = np.diag([vm, vm, vv, vv])
+            self._n[row, _HITS] += 1
+            self._n[row, _MISSES] = 0
+        return out_rows, out_cols
+
     def _keep_and_start(self, keep: npt.NDArray[np.bool_], new: list[Cluster], t: float) -> None:
         """Drop the rows not kept and start a track for each cluster in ``new``, seen at ``t``."""
         if not new:
@@ -331,8 +390,8 @@ class ObstacleTracker:
                 self._s, self._n, self._P = self._s[keep], self._n[keep], self._P[keep]
             return
         m = len(new)
-        s0 = np.zeros((m, 10))
-        s0[:, :2] = s0[:, _START] = [(c.x_m, c.y_m) for c in new]
+        s0 = np.zeros((m, _WIDTH))
+        s0[:, :2] = s0[:, _START] = s0[:, _SEEN_XY] = [(c.x_m, c.y_m) for c in new]
         s0[:, _R] = [c.radius_m for c in new]
         s0[:, _T0] = s0[:, _SEEN] = t
         n0 = np.zeros((m, 3), dtype=np.int64)
@@ -358,5 +417,5 @@ class ObstacleTracker:
         sig = np.sqrt(np.maximum(np.where(moving, along, 0.5 * (P[:, 2, 2] + P[:, 3, 3])), 0.0)).tolist()
         now = self._last_t if self._last_t is not None else 0.0
         return [Track(i, x, y, vx, vy, r, sg, tuple(map(tuple, cv)), now - t0, h, tv, now - seen)
-                for (x, y, vx, vy, r, t0, seen, _sx, _sy, tv), (i, h, _m), sg, cv
+                for (x, y, vx, vy, r, t0, seen, _sx, _sy, tv, _lx, _ly), (i, h, _m), sg, cv
                 in zip(s.tolist(), n.tolist(), sig, P.tolist())]
