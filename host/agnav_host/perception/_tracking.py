@@ -21,7 +21,9 @@ uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` (or its own radius, if
 was first seen; a track is confirmed only by ``confirm_hits`` scans with no more than
 ``TrackerParams.confirm_max_misses`` misses in a row between them (not by three fragments seen over
 half a second). Through an occlusion (a walker behind a box) a track coasts on its velocity
-for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate.
+for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate. A walker
+who turns round leaves that gate; with ``TrackerParams.reacquire_m`` his track, missed, takes a free cluster
+near where it was last seen instead and restarts its velocity (opt-in).
 Two objects seen as one cluster (a walker passing a box) would drag both tracks: with
 ``max_grow_m`` a confirmed track does not take a cluster much larger than itself and coasts instead.
 """
