@@ -29,7 +29,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
@@ -184,8 +184,20 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"unknown planner(s) {', '.join(unknown)}; known: {', '.join(planner_names())}")
     t0 = time.time()
     jobs = [(k, p, ns.robot, ns.walkers, ns.timed, ns.mover_horizon) for p in planners for k in range(ns.first, ns.first + ns.yards)]
-    with ProcessPoolExecutor(ns.jobs) as ex:
-        res = list(ex.map(run_one, jobs))
+    res: list[tuple[int, str, str, float, float]] = [None] * len(jobs)  # type: ignore[list-item]
+    show = sys.stderr.isatty()  # a progress line for people at a terminal, none in logs
+    from agnav_host.planning.bench import workers
+
+    with ProcessPoolExecutor(workers(ns.jobs, len(jobs))) as ex:
+        futures = {ex.submit(run_one, job): i for i, job in enumerate(jobs)}
+        for done, fut in enumerate(as_completed(futures), 1):
+            res[futures[fut]] = fut.result()
+            if show:
+                k, p, end = res[futures[fut]][:3]
+                bar = "#" * (30 * done // len(jobs))
+                eta = (time.time() - t0) / done * (len(jobs) - done)
+                print(f"\r[{bar:<30}] {done}/{len(jobs)} runs, about {eta:.0f} s left; yard {k} {p}: {end:<14.14}",
+                      end="" if done < len(jobs) else "\n", file=sys.stderr, flush=True)
     what = f"{ns.robot} robot" + (f", {ns.walkers} walker(s), mover_horizon_s {ns.mover_horizon:g}" if ns.walkers else "") + (", timed goal" if ns.timed else "")
     print(f"# {ns.yards} random cluttered yards {ns.first}-{ns.first + ns.yards - 1} (bench/bench_yards.py), {what}, {len(res)} runs\n")
     print("| planner | arrived | timeout | collision (moving) | hit standing | other | smallest clearance m | "
