@@ -212,9 +212,11 @@ def _inv2(S: FloatArray) -> FloatArray:
 # columns of ObstacleTracker._s, one row per track (floats), and of ObstacleTracker._n (integers)
 _X = slice(0, 4)  # state x, y (m), vx, vy (m/s), world frame
 _R, _T0, _SEEN = 4, 5, 6  # radius (m), first seen and last seen (s)
-_START = slice(7, 9)  # where the track was first seen (m)
+_START_X, _START_Y = 7, 8  # where the track was first seen (m)
+_START = slice(_START_X, _START_Y + 1)
 _TRAVEL = 9  # farthest the estimate has been from there (m)
-_SEEN_XY = slice(10, 12)  # the position it was last seen at (m)
+_SEEN_X, _SEEN_Y = 10, 11  # the position it was last seen at (m)
+_SEEN_XY = slice(_SEEN_X, _SEEN_Y + 1)
 _WIDTH = 12
 _ID, _HITS, _MISSES = 0, 1, 2
 
@@ -303,7 +305,7 @@ class ObstacleTracker:
         s[:, _R] = 0.7 * s[:, _R] + 0.3 * np.array([c.radius_m for c in clusters])
         s[:, _SEEN] = t
         s[:, _SEEN_XY] = z
-        s[:, _TRAVEL] = np.maximum(s[:, _TRAVEL], np.hypot(s[:, 0] - s[:, _START.start], s[:, 1] - s[:, _START.start + 1]))
+        s[:, _TRAVEL] = np.maximum(s[:, _TRAVEL], np.hypot(s[:, 0] - s[:, _START_X], s[:, 1] - s[:, _START_Y]))
         self._s[idx] = s
         self._P[idx] = P - K @ P[:, :2, :]
         self._n[idx, _HITS] += 1
@@ -357,7 +359,7 @@ class ObstacleTracker:
             return [], []
         cz = np.array([(clusters[j].x_m, clusters[j].y_m) for j in free])
         cr = np.array([clusters[j].radius_m for j in free])
-        d = np.hypot(cz[None, :, 0] - s[cand, 10][:, None], cz[None, :, 1] - s[cand, 11][:, None])  # from where last seen
+        d = np.hypot(cz[None, :, 0] - s[cand, _SEEN_X][:, None], cz[None, :, 1] - s[cand, _SEEN_Y][:, None])  # from where last seen
         r = s[cand, _R][:, None]
         ok = (d <= p.reacquire_m) & (r - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r + p.max_grow_m)
         ii, jj = np.nonzero(ok)
@@ -378,7 +380,7 @@ class ObstacleTracker:
             s[row, _R] = 0.7 * s[row, _R] + 0.3 * c.radius_m
             s[row, _SEEN] = t
             s[row, _SEEN_XY] = (c.x_m, c.y_m)
-            s[row, _TRAVEL] = max(s[row, _TRAVEL], float(np.hypot(c.x_m - s[row, 7], c.y_m - s[row, 8])))
+            s[row, _TRAVEL] = max(s[row, _TRAVEL], float(np.hypot(c.x_m - s[row, _START_X], c.y_m - s[row, _START_Y])))
             vm, vv = p.meas_std_m**2, p.reacquire_speed_std_m_s**2
             self._P[row] = np.diag([vm, vm, vv, vv])
             self._n[row, _HITS] += 1
