@@ -545,6 +545,17 @@ class MoverGuard:
         self.stops += stand
         return stand
 
+    def stand_for(self, obs: Observation, cmd: DriveCommand) -> bool:
+        """:meth:`stand` for a robot command: its yaw rate from the steering angle on a car, and a
+        :class:`ForwardTurn` checked as one."""
+        if cmd.speed_m_s <= 0.0:
+            return False
+        if cmd.steer_rad is not None:
+            w = cmd.speed_m_s * math.tan(cmd.steer_rad) / self.spec.wheelbase_m
+        else:
+            w = cmd.yaw_rate_rad_s
+        return self.stand(obs, cmd.speed_m_s, w, isinstance(cmd, ForwardTurn))
+
 
 class WithMoverGuard:
     """A reactive planner with a :class:`MoverGuard` around it (registry: ``mover_horizon_s`` in the
@@ -565,13 +576,6 @@ class WithMoverGuard:
     def step(self, obs: Observation) -> DriveCommand:
         cmd = self.planner.step(obs)
         self.guard.update(obs)
-        spec = self.guard.spec
-        if cmd.speed_m_s <= 0.0:
-            return cmd
-        if cmd.steer_rad is not None:
-            w = cmd.speed_m_s * math.tan(cmd.steer_rad) / spec.wheelbase_m
-        else:
-            w = cmd.yaw_rate_rad_s
-        if self.guard.stand(obs, cmd.speed_m_s, w, isinstance(cmd, ForwardTurn)):
+        if self.guard.stand_for(obs, cmd):
             return DriveCommand(0.0, cmd.yaw_rate_rad_s, cmd.steer_rad)
         return cmd

@@ -284,6 +284,6 @@ class FollowPathPlanner:
         # the view goes to drive_command only for a stop (the car's roll-out steering): driving, the check
         # above reaches further than drive_command's braking guard, which would only repeat it
         cmd = drive_command(spec, v_r, w_r, v if v_r == 0.0 else None, obs)
-        if isinstance(cmd, ForwardTurn) and self.movers.stand(obs, cmd.speed_m_s, cmd.speed_m_s * math.tan(cmd.steer_rad or 0.0) / spec.wheelbase_m, True):
+        if isinstance(cmd, ForwardTurn) and self.movers.stand_for(obs, cmd):  # drive_command made it: check it too
             return DriveCommand(0.0, 0.0, cmd.steer_rad)
         return cmd
