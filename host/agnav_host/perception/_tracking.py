@@ -209,6 +209,30 @@ def _inv2(S: FloatArray) -> FloatArray:
     return out
 
 
+def _sized(p: TrackerParams, r: FloatArray, cr: FloatArray) -> npt.NDArray[np.bool_]:
+    """(tracks, clusters): the cluster's radius ``cr`` within ``max_shrink_m`` below and ``max_grow_m`` above
+    the track's ``r``."""
+    return (r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r[:, None] + p.max_grow_m)
+
+
+def _greedy_pairs(cost: FloatArray, ok: npt.NDArray[np.bool_]) -> tuple[list[int], list[int]]:
+    """Greedy matching of rows to columns among the ``ok`` pairs, lowest ``cost`` first (ties by row, then
+    column), each row and column at most once: (rows, their columns)."""
+    ii, jj = np.nonzero(ok)
+    rows: list[int] = []
+    cols: list[int] = []
+    taken_r: set[int] = set()
+    taken_c: set[int] = set()
+    for _, i, j in sorted(zip(cost[ii, jj].tolist(), ii.tolist(), jj.tolist())):
+        if i in taken_r or j in taken_c:
+            continue
+        taken_r.add(i)
+        taken_c.add(j)
+        rows.append(i)
+        cols.append(j)
+    return rows, cols
+
+
 # columns of ObstacleTracker._s, one row per track (floats), and of ObstacleTracker._n (integers)
 _X = slice(0, 4)  # state x, y (m), vx, vy (m/s), world frame
 _R, _T0, _SEEN = 4, 5, 6  # radius (m), first seen and last seen (s)
@@ -275,22 +299,9 @@ class ObstacleTracker:
         m2 = ((dx * Si[:, None, 0, 0] + dy * Si[:, None, 1, 0]) * dx
               + (dx * Si[:, None, 0, 1] + dy * Si[:, None, 1, 1]) * dy)
         ok = np.hypot(dx, dy) <= p.max_gate_m
-        sized = (r[:, None] - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r[:, None] + p.max_grow_m)
-        ok &= ~confirmed[:, None] | sized
+        ok &= ~confirmed[:, None] | _sized(p, r, cr)
         ok &= m2 <= p.gate_sigma**2
-        ii, jj = np.nonzero(ok)
-        rows: list[int] = []
-        cols: list[int] = []
-        taken_t: set[int] = set()
-        taken_c: set[int] = set()
-        for _, i, j in sorted(zip(m2[ii, jj].tolist(), ii.tolist(), jj.tolist())):
-            if i in taken_t or j in taken_c:
-                continue
-            taken_t.add(i)
-            taken_c.add(j)
-            rows.append(i)
-            cols.append(j)
-        return rows, cols
+        return _greedy_pairs(m2, ok)
 
     def _correct(self, rows: list[int], clusters: list[Cluster], R: FloatArray, t: float) -> None:
         """Kalman update of the tracks in ``rows`` with their clusters' centres (position-only measurement,
@@ -360,17 +371,10 @@ class ObstacleTracker:
         cz = np.array([(clusters[j].x_m, clusters[j].y_m) for j in free])
         cr = np.array([clusters[j].radius_m for j in free])
         d = np.hypot(cz[None, :, 0] - s[cand, _SEEN_X][:, None], cz[None, :, 1] - s[cand, _SEEN_Y][:, None])  # from where last seen
-        r = s[cand, _R][:, None]
-        ok = (d <= p.reacquire_m) & (r - p.max_shrink_m <= cr[None, :]) & (cr[None, :] <= r + p.max_grow_m)
-        ii, jj = np.nonzero(ok)
-        out_rows: list[int] = []
-        out_cols: list[int] = []
-        for _, i, j in sorted(zip(d[ii, jj].tolist(), ii.tolist(), jj.tolist())):
-            row, col = int(cand[i]), free[j]
-            if row in out_rows or col in out_cols:
-                continue
-            out_rows.append(row)
-            out_cols.append(col)
+        pairs = _greedy_pairs(d, (d <= p.reacquire_m) & _sized(p, s[cand, _R], cr))
+        out_rows = [int(cand[i]) for i in pairs[0]]
+        out_cols = [free[j] for j in pairs[1]]
+        for row, col in zip(out_rows, out_cols):
             c = clusters[col]
             v = (np.array([c.x_m, c.y_m]) - s[row, _SEEN_XY]) / max(t - s[row, _SEEN], 1e-3)
             sp = float(np.hypot(v[0], v[1]))
