@@ -443,7 +443,6 @@ def clear_earlier_outputs(command: str, out: str, patterns: tuple[str, ...], qui
     """Remove the files matching ``patterns`` (globs: the files ``command`` writes) that an earlier run left
     in ``out``; other files are left alone. Why that failed, or None. Said on stderr unless ``quiet``: the
     names, or their count when there are more than eight."""
-
     old: list[Path] = []  # in the order of ``patterns``, then by name
     for pat in patterns:
         old += [p for p in sorted(Path(out).glob(pat)) if (p.is_file() or p.is_symlink()) and p not in old]
