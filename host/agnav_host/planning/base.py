@@ -493,7 +493,6 @@ class MoverGuard:
         self.spec, self.horizon_s, self.margin_m = spec, horizon_s, margin_m
         self.tracker = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
         self.moving: list = []  # the tracker's moving tracks at the last update (perception Track)
-        self._walked: set[int] = set()  # ids of the tracks that have moved
         self.walkers: list = []  # tracks that have moved, moving or not now (a walker turning round slows)
         self.stops = 0  # steps the robot stood for a moving track
 
@@ -503,10 +502,8 @@ class MoverGuard:
 
     def update(self, obs: Observation) -> None:
         if self.on and obs.scan is not None and obs.scan.pose is not None:
-            tracks = self.tracker.update(obs.scan, obs.t_s)
-            self.moving = [tr for tr in tracks if tr.moving]
-            self._walked = (self._walked | {tr.id for tr in self.moving}) & {tr.id for tr in tracks}  # dropped ids never return
-            self.walkers = [tr for tr in tracks if tr.id in self._walked]
+            self.walkers = self.tracker.update(obs.scan, obs.t_s, movers_only=True)
+            self.moving = [tr for tr in self.walkers if tr.moving]
 
     def stand(self, obs: Observation, v_m_s: float, w_rad_s: float, forward_turn: bool = False) -> bool:
         """True when the robot should stand this step instead of driving at ``v_m_s`` / ``w_rad_s``.

@@ -339,7 +339,7 @@ class TimedPlanner:
         p = self.params
         given = obs.extras.get("tracks", obs.extras.get("moving_obstacles"))
         if given is None and p.track_from_scan and obs.scan is not None and obs.scan.pose is not None:
-            self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, t) if tr.moving]
+            self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, t, movers_only=True) if tr.moving]
             given = self.tracked_moving
         tracks = moving_obstacles_from(given, t)  # type: ignore[arg-type]
         seen_now = [float(getattr(g, "unseen_s", 0.0)) <= 0.0 for g in given or []]  # type: ignore[union-attr]
