@@ -18,7 +18,10 @@ angle: it falls apart into fragments that change with every scan's noise), is cu
 all (a wall leaving the range, a box leaving the field of view, a walker coming out from behind a post
 would "move" with the robot or too fast), and a track is moving only when its speed is well above its
 uncertainty *and* it has travelled ``Track.MIN_TRAVEL_M`` (or its own radius, if larger) from where it
-was first seen; a track is confirmed only by ``confirm_hits`` scans with no more than
+was first seen, *and* it moves from sighting to sighting without jumps (``Track.pair_speed_m_s``), *and* the
+place it is at has not had laser returns for long (``Track.standing_s``: a track hopping from plant to plant
+along a crop row gathers a speed from its hops while every plant it takes stands still and has been seen
+there all along); a track is confirmed only by ``confirm_hits`` scans with no more than
 ``TrackerParams.confirm_max_misses`` misses in a row between them (not by three fragments seen over
 half a second). Through an occlusion (a walker behind a box) a track coasts on its velocity
 for up to ``TrackerParams.max_coast_s`` (its covariance growing) and is picked up again by the gate. A walker
@@ -221,9 +224,9 @@ class Track:
     travel_m: float = math.inf  # farthest the estimate has been from where the object was first seen
     unseen_s: float = 0.0  # time since the last scan that saw it (> 0: coasting on its velocity)
     # its speed from sighting to sighting (m/s): over its last PAIRS_KEPT pairs of sightings, those in
-    # consecutive scans when there are MIN_PAIRS of them (else all), the displacement along the estimated
-    # velocity per second; 0 with fewer than MIN_PAIRS pairs or when one jumped (JUMP_M farther than the
-    # speed goes in that time)
+    # consecutive scans when there are MIN_PAIRS of them (else those with one scan missed at most), the
+    # displacement along the estimated velocity per second; 0 with fewer than MIN_PAIRS pairs or when one
+    # jumped (JUMP_M farther than the speed goes in that time)
     pair_speed_m_s: float = math.inf
     # how long the laser has had returns without a break (s) from the place it is at (its cell and the eight
     # around it, TrackerParams.standing_cell_m): a standing thing there, a plant or a post, when long
@@ -233,7 +236,7 @@ class Track:
     MIN_PAIRS = 3
     PAIR_SPEED_SHARE = 0.5  # ... and moved from scan to scan at this share of its speed
     JUMP_M = 0.1
-    STANDING_S = 1.5 # ... and where it is now has not had returns for longer than this
+    STANDING_S = 1.5  # ... and where it is now has not had returns for longer than this (s)
 
     @property
     def speed_m_s(self) -> float:
