@@ -174,12 +174,16 @@ def bench_rows(methods: list[str], runs: int = 5, speed_m_s: float = 0.4) -> dic
     return res
 
 
-def curvy_row_scenario(seed: int) -> Scenario:
+def curvy_row_scenario(seed: int, jitter_m: float | None = None) -> Scenario:
     """The built-in curvy_row with its bushes drawn from ``world_seed = 7 + seed`` (seed 0 is the built-in world),
-    so each benchmark seed has its own bush scatter, not only its own sensor and wheel-slip noise."""
+    so each benchmark seed has its own bush scatter, not only its own sensor and wheel-slip noise. ``jitter_m``
+    replaces the row's planting jitter (m, 1 sigma per bush centre; the scenario's own 0.05 when None)."""
     text = builtin_text("curvy_row")
     text, n = re.subn(r"(?m)^world_seed = \d+$", f"world_seed = {7 + seed}", text)
     assert n == 1, "curvy_row.toml: no world_seed line"
+    if jitter_m is not None:
+        text, n = re.subn(r"(?m)^jitter_m = [0-9.eE+-]+$", f"jitter_m = {jitter_m!r}", text)
+        assert n == 1, "curvy_row.toml: no jitter_m line"
     return parse_scenario(text, f"<curvy_row seed {seed}>")
 
 
@@ -248,8 +252,8 @@ def _design_offset_m(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (y - 1.5 * np.sin(k * x)) * np.cos(np.arctan(1.5 * k * np.cos(k * x)))
 
 
-def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[float, ...] = (3.0, 6.0, 11.0)
-                    ) -> list[dict[str, float]]:
+def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[float, ...] = (3.0, 6.0, 11.0),
+                    jitter_m: float | None = None) -> list[dict[str, float]]:
     """How far the row's visible face itself strays from the plant line, per world: the face the robot sees
     (right side of the row: at each 5 cm station the nearest point of any bush circle) is averaged over a
     window of each length along the row, and the largest deviation of that running mean from the world's
@@ -257,7 +261,7 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
     over that length would still be off the plant line by this much, plus its own noise."""
     out = []
     for seed in seeds:
-        sc = curvy_row_scenario(seed)
+        sc = curvy_row_scenario(seed, jitter_m)
         c = sc.world.circles
         off = _design_offset_m(c[:, 0], c[:, 1])
         st = np.arange(0.0, 48.0, 0.05)
@@ -286,23 +290,25 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
     return out
 
 
-def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False) -> list[dict[str, object]]:
+def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False,
+                    jitter_m: float | None = None) -> list[dict[str, object]]:
     """Proximity following (module docstring). ``sil``: in the SIL (native firmware, radio link, the firmware's
     odometry for the follower's row map; ends within 0.5 m of the path's point at x = 47 m); the follower's own
-    estimate is then not compared (NaN)."""
+    estimate is then not compared (NaN). ``jitter_m``: the planting jitter of every row, the calibration rows
+    included (None: the scenario's)."""
     from agnav_host.sil.session import run_sil_scenario
     from agnav_host.sim.world import sine_curve
 
     out = []
     # the robot drives 1 m to the right of the row, so the row is on its left
-    cals = [curvy_row_scenario(s) for s in PROXIMITY_CALIBRATION_SEEDS]
+    cals = [curvy_row_scenario(s, jitter_m) for s in PROXIMITY_CALIBRATION_SEEDS]
     assert cals[0].laser is not None
     params = ProximityFollowerParams(side="left", distance_m=1.0, speed_m_s=0.5, mount=cals[0].laser.mount)
     half_width_m = float(np.mean([calibrate_half_width(c, params) for c in cals]))
     # the row's centre (plant) line exactly as the scenario parser lays the bushes along it
     centre = sine_curve(0.0, 0.0, 0.0, 48.0, 1.5, 24.0)
     for seed in seeds:
-        sc = curvy_row_scenario(seed)
+        sc = curvy_row_scenario(seed, jitter_m)
         assert sc.laser is not None
         ctrl = ProximityFollower(replace(params, row_half_width_m=half_width_m))
         own: list[tuple[float, float]] = []  # (t, the follower's own distance estimate)
@@ -603,7 +609,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default=",".join(row_method_names()))
     ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
                     help="where the closed-loop figures go (PNG; '' for none)")
+    ap.add_argument("--row-jitter", type=float, default=None, metavar="M",
+                    help="proximity and face: the curvy row's planting jitter, m (1 sigma per bush; default the "
+                         "scenario's 0.05), for how the figures depend on it")
     ns = ap.parse_args(argv)
+    if ns.row_jitter is not None and not (0.0 <= ns.row_jitter <= 0.5):
+        ap.error(f"--row-jitter must be 0-0.5 m, got {ns.row_jitter:g}")
     parts = set(ns.only.split(","))
     ruts_res: list[dict[str, object]] | None = None
     holes_res: list[dict[str, object]] | None = None
@@ -623,7 +634,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {m} | {mean:.4f} +- {sd:.4f} | {', '.join(f'{r[0]:.4f}' for r in runs)} | {clean}/{len(runs)} | {refs} | {better} |")
         sys.stdout.flush()
     for sil, where in _variants(parts, "proximity"):
-        pr = bench_proximity(sil=sil)
+        pr = bench_proximity(sil=sil, jitter_m=ns.row_jitter)
         if not sil:
             prox_res = pr
         print(f"\n## Proximity following, curvy_row (50 m), target 1.00 +- 0.05 m from the row centre line; {where}")
@@ -638,7 +649,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"| {r['min']:.3f} ({r['x_min']:.1f}) | {r['max']:.3f} ({r['x_max']:.1f}) | {100.0 * r['inside']:.1f} % "
                   f"| {r['whole_min']:.3f}-{r['whole_max']:.3f} | {r['est_err_max']:.3f} | {r['ctrl_err_max']:.3f} |")
         print("\n(the same runs against the row as planted: the bushes' centres averaged over a stretch of row of each "
-              "length, instead of the design sine they were planted along with 5 cm jitter)")
+              f"length, instead of the design sine they were planted along with "
+              f"{100 * (0.05 if ns.row_jitter is None else ns.row_jitter):g} cm jitter)")
         print("| seed | " + " | ".join(f"{w:g} m: mean +- sd, min-max, within +-0.05" for w in PLANTED_WINDOWS_M) + " |")
         print("|---|" + "---|" * len(PLANTED_WINDOWS_M))
         for r in pr:
@@ -647,7 +659,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{r[f'planted{w:g}_max']:.3f}, {100.0 * r[f'planted{w:g}_inside']:.1f} %" for w in PLANTED_WINDOWS_M) + " |")
         sys.stdout.flush()
     if "face" in parts:
-        fl = bush_face_floor()
+        fl = bush_face_floor(jitter_m=ns.row_jitter)
         print("\n(the bushes' face against the plant line: largest deviation of its running mean over 3 / 6 / 11 m of row "
               "from the world's mean face, m; a floor for any follower that sees only the face. The bush centres' columns: "
               "the same for the bushes' centres against the design line - where the plants themselves stand off it)")
