@@ -156,7 +156,7 @@ class FollowPathParams:
     stop_lag_s: float = 0.4
     # moving obstacles (people walking) from the laser tracker: the robot stops when driving on along its
     # arc would meet one within mover_horizon_s (mover_margin_m of clearance), unless standing would not
-    # escape it either. 0 horizon: off (the default: the tracker costs 0.27-0.90 ms per step on the planner
+    # escape it either. 0 horizon: off (the default: the tracker costs 0.30-0.80 ms per step on the planner
     # benchmark's scenes, more than the rest of the step; 2.0 s for yards with people)
     mover_horizon_s: float = 0.0
     mover_margin_m: float = 0.1
