@@ -1,7 +1,7 @@
 """Perception benchmark: closed-loop row following, proximity following, hole detection, latency.
 
 Run:  .venv/bin/python bench/bench_perception.py            (all, a few minutes)
-      .venv/bin/python bench/bench_perception.py --only rows,proximity,proximity_sil,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency
+      .venv/bin/python bench/bench_perception.py --only rows,proximity,proximity_sil,face,oracle,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency
 Everything is seeded; the figures go to bench/results/perception.md by hand.
 
 * rows: five runs per detection method ("clean": reached the row end without touching a crop plant;
@@ -20,6 +20,8 @@ Everything is seeded; the figures go to bench/results/perception.md by hand.
   circles, what a surveyor would mark) averaged over 2, 3 and 6 m of row, instead of the design sine.
 * face: how far the curvy row's visible face itself strays from its plant line, per world (no simulation):
   the floor under any follower that sees only the face (see bush_face_floor).
+* oracle: the row's shape estimated from the bushes' true centres by local polynomials and smoothers over a grid
+  of windows, scored on the design line (see oracle_floor): what a follower could at best do with this planting.
 * holes: the five hole sizes of ref 000 table 5-I, each approached head-on and at 30 deg from three
   seeded starts; "detected" = a hole cell reported inside the true hole while the robot's front is
   still outside it.
@@ -41,6 +43,7 @@ Figures of the closed-loop runs (ruts, hole_field, proximity) go to ``--plots DI
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import re
 import statistics
@@ -288,6 +291,54 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
             row[f"c{w:g}"] = float(np.max(np.abs(run_b)))
         out.append(row)
     return out
+
+
+def _row_frames(bc: np.ndarray, stations_x: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The bush centres ``bc`` in the frame of each station on the curvy row's design line (origin on the line,
+    x along its tangent): (along, across) per station."""
+    k = 2 * math.pi / 24.0
+    for x0 in stations_x:
+        y0, th = 1.5 * math.sin(k * x0), math.atan(1.5 * k * math.cos(k * x0))
+        c, s = math.cos(th), math.sin(th)
+        dx, dy = bc[:, 0] - x0, bc[:, 1] - y0
+        yield c * dx + s * dy, -s * dx + c * dy
+
+
+def oracle_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), jitter_m: float | None = None
+                 ) -> list[tuple[float, str, float, float]]:
+    """What a follower could do at best if it knew every bush's true centre (no laser, no visible face, no
+    control error): at each station every 0.1 m past x = 2 m, the row's shape is estimated from the bush
+    centres within [-back, +ahead] m of it, and the estimate's offset from the design line at the station is
+    its error. Two families of shape-agnostic estimators, each tried over a grid of settings: a local
+    polynomial (degree 1-4) and a Whittaker smoother on a 0.2 m grid (fourth differences, cut-off 8-12 m).
+    Returns (largest error over all seeds and stations in m, estimator, back m, ahead m), best first. The
+    settings are picked on the very runs they are scored on, so this is a floor, not a follower."""
+    data = [bush_centres(curvy_row_scenario(seed, jitter_m)) for seed in seeds]
+    st = np.arange(2.0, 46.0, 0.1)
+    out: list[tuple[float, str, float, float]] = []
+    for back, ahead, deg in itertools.product((3.0, 5.0, 6.0, 8.0, 10.0), (4.0, 5.5, 8.0), (2, 3, 4)):
+        worst = 0.0
+        for bc in data:
+            for lx, ly in _row_frames(bc, st):
+                sel = (lx >= -back) & (lx <= ahead)
+                worst = max(worst, abs(float(np.polynomial.polynomial.polyfit(lx[sel], ly[sel], deg)[0])))
+        out.append((worst, f"polynomial, degree {deg}", back, ahead))
+    h = 0.2
+    for back, ahead, cut in itertools.product((10.0, 14.0), (5.5, 8.0), (8.0, 10.0, 12.0)):
+        m = int(round((back + ahead) / h)) + 1
+        d4 = np.diff(np.eye(m), 4, axis=0)
+        pen = (cut / (2 * math.pi * h)) ** 8 * (d4.T @ d4)
+        i0 = int(round(back / h))
+        worst = 0.0
+        for bc in data:
+            for lx, ly in _row_frames(bc, st):
+                sel = (lx >= -back) & (lx <= ahead)
+                idx = np.clip(np.round((lx[sel] + back) / h).astype(int), 0, m - 1)
+                f = np.linalg.solve(np.diag(np.bincount(idx, minlength=m).astype(float)) + pen,
+                                    np.bincount(idx, ly[sel], minlength=m))
+                worst = max(worst, abs(float(f[i0])))
+        out.append((worst, f"smoother, cut-off {cut:g} m", back, ahead))
+    return sorted(out)
 
 
 def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False,
@@ -605,7 +656,7 @@ def _variants(parts: set[str], name: str) -> list[tuple[bool, str]]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="rows,proximity,proximity_sil,face,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
+    ap.add_argument("--only", default="rows,proximity,proximity_sil,face,oracle,holes,ruts,ruts_sil,hole_field,hole_field_sil,latency")
     ap.add_argument("--methods", default=",".join(row_method_names()))
     ap.add_argument("--plots", default="bench/results/perception", metavar="DIR",
                     help="where the closed-loop figures go (PNG; '' for none)")
@@ -668,6 +719,16 @@ def main(argv: list[str] | None = None) -> int:
         for r in fl:
             print(f"| {r['seed']} | {r['face_mean_m']:+.3f} | {r['w3']:.3f} | {r['w6']:.3f} | {r['w11']:.3f} "
                   f"| {r['c3']:.3f} | {r['c6']:.3f} | {r['c11']:.3f} |")
+        sys.stdout.flush()
+    if "oracle" in parts:
+        orc = oracle_floor(jitter_m=ns.row_jitter)
+        print("\n(the floor under any shape-agnostic follower: the row estimated from the bushes' true centres, no laser, "
+              "no face, no control error; largest offset from the design line over 5 seeds, settings picked on these runs)")
+        print("| estimator | back, m | ahead, m | largest error, m |")
+        print("|---|---|---|---|")
+        within_reach = [o for o in orc if o[3] <= 5.5]
+        for worst, name, back, ahead in orc[:3] + [o for o in within_reach[:3] if o not in orc[:3]]:
+            print(f"| {name} | {back:g} | {ahead:g} | {worst:.4f} |")
         sys.stdout.flush()
     if "holes" in parts:
         hr = bench_holes()
