@@ -335,6 +335,17 @@ def _planner_names() -> list[str]:
     return planner_names()
 
 
+def _row_distance(sc: Any, planner: str, trajectory: Any) -> Any:
+    """For the proximity follower on a scenario with plant rows: how far the run kept from the nearest row's
+    design line (:func:`agnav_host.sim.metrics.row_distance`, the set distance from ``meta.follow_offset_m``,
+    default 1 m); None for any other run."""
+    from .sim.metrics import row_distance
+
+    if planner != "proximity" or not sc.world.row_lines:
+        return None
+    return row_distance(trajectory[:, 1], trajectory[:, 2], sc.world.row_lines, float(sc.meta.get("follow_offset_m", 1.0)))
+
+
 @subcommand(
     "sim",
     help="run a simulator scenario and write summary.json and trajectory.csv",
@@ -358,7 +369,7 @@ def _planner_names() -> list[str]:
     ],
 )
 def _cmd_sim(ns: argparse.Namespace) -> int:
-    from .sim.runner import run_scenario, write_outputs
+    from .sim.runner import run_scenario, write_outputs, write_row_distance
     from .sim.scenario import ScenarioError, load_scenario, run_length_problem
     from .types import Goal
 
@@ -420,14 +431,21 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         if not ns.quiet:
             print(file=sys.stderr)
         write = lambda: write_outputs(result, ns.out, plot=not ns.no_plot)  # noqa: E731
+    rows = _row_distance(sc, ns.planner, result.trajectory)
     try:
         paths = write()
+        if rows is not None:
+            paths += write_row_distance(rows, ns.out, plot=not ns.no_plot)
         if not getattr(ns, "no_rrd", False):
             paths += _sim_recordings(sc, result, ns.out, with_link=ns.firmware in ("sil", "avr"))
     except (OSError, RuntimeError) as e:  # disk full, output folder not writable, recorder died
         return _report_write_failure("sim", ns.out, e)
     m = result.metrics
     print(f"{sc.name}: {result.end_reason}, success={m.success}, time={m.time_s:.2f} s, path={m.path_length_m:.2f} m")
+    if rows is not None:
+        print(f"  distance from the row (design line, past the first {rows.settle_m:g} m of travel): mean {rows.mean_m:.3f} m, "
+              f"sd {rows.sd_m:.3f}, {rows.min_m:.3f}-{rows.max_m:.3f} m, {100 * rows.within:.1f} % within "
+              f"{rows.set_m:g} +- {rows.band_m:g} m")
     for p in paths:
         print(f"  wrote {p}")
     return 0
@@ -436,7 +454,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
 #: Every file `agnav sim` may write into its --out folder (ideal and firmware-in-the-loop runs, plots and
 #: recordings): those of an earlier run are removed before a run, so that a folder never mixes two runs.
 SIM_OUTPUTS = ("summary.json", "run_info.json", "trajectory.csv", "trajectory.png", "recording.rrd",
-               "link.tlog", "firmware.csv", "link.rrd")
+               "link.tlog", "firmware.csv", "link.rrd", "row_distance.json", "row_distance.png")
 
 
 def clear_earlier_outputs(command: str, out: str, patterns: tuple[str, ...], quiet: bool) -> str | None:

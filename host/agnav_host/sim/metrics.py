@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "signed_offset_m",
+    "RowDistance",
+    "row_distance",
     "along_and_offset_m",
     "disc_clearance_to_hole_m",
     "SUMMARY_KEYS",
@@ -274,6 +276,47 @@ def along_and_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> tupl
     i = np.arange(len(j))
     n = np.sign(d[j, 0] * qy[i, j] - d[j, 1] * qx[i, j]) * np.hypot(ex[i, j], ey[i, j])
     return s0[j] + u[i, j] * seg[j], n
+
+
+@dataclass(frozen=True)
+class RowDistance:
+    """How far a run kept from the nearest plant row's design line (proximity following), m: every sample once
+    the robot has driven ``settle_m``; ``within`` is the share of those samples within ``band_m`` of ``set_m``.
+    ``travel_m`` and ``distance_m`` are the samples themselves (for a plot)."""
+
+    set_m: float
+    band_m: float
+    settle_m: float
+    mean_m: float
+    sd_m: float
+    min_m: float
+    max_m: float
+    within: float
+    travel_m: FloatArray
+    distance_m: FloatArray
+
+    def to_dict(self, ndigits: int = 4) -> dict[str, Any]:
+        return {"set_m": self.set_m, "band_m": self.band_m, "settle_m": self.settle_m, "samples": int(len(self.distance_m)),
+                "mean_m": round(self.mean_m, ndigits), "sd_m": round(self.sd_m, ndigits), "min_m": round(self.min_m, ndigits),
+                "max_m": round(self.max_m, ndigits), "within_band": round(self.within, ndigits)}
+
+
+def row_distance(px: FloatArray, py: FloatArray, lines: list[FloatArray], set_m: float, settle_m: float = 2.0,
+                 band_m: float = 0.05) -> RowDistance | None:
+    """:class:`RowDistance` of a driven path (px, py) against the row design lines ``lines`` (each (k, 2)):
+    at each sample the distance to the nearest line. None when there is no line or the robot never drove
+    ``settle_m``."""
+    px, py = np.asarray(px, dtype=float), np.asarray(py, dtype=float)
+    if not lines or len(px) < 2:
+        return None
+    d = np.min([np.abs(along_and_offset_m(px, py, np.asarray(ln, dtype=float))[1]) for ln in lines], axis=0)
+    travel = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(px), np.diff(py)))))
+    keep = travel >= settle_m
+    if not keep.any():
+        return None
+    dk = d[keep]
+    return RowDistance(float(set_m), float(band_m), float(settle_m), float(dk.mean()), float(dk.std()), float(dk.min()),
+                       float(dk.max()), float(np.mean(np.abs(dk - set_m) <= band_m)), travel[keep], dk)
 
 
 def disc_clearance_to_hole_m(px: FloatArray, py: FloatArray, radius_m: float, hole: Hole, grid_m: float = 0.02) -> float:

@@ -24,7 +24,7 @@ from ..types import DriveCommand, Goal, Observation, SonarFrame
 if TYPE_CHECKING:
     from ..planning.base import RobotSpec
 from .controller import STANDINS, Controller, GoalSeekParams, make_standin
-from .metrics import RunMetrics
+from .metrics import RowDistance, RunMetrics
 from .robots import AckermannParams
 from .scenario import Scenario, run_length_problem
 
@@ -257,6 +257,39 @@ def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> 
         png = _try_plot(result, out / "trajectory.png")
         if png is not None:
             written.append(png)
+    return written
+
+
+def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) -> list[Path]:
+    """Write row_distance.json (:meth:`RowDistance.to_dict`) and, when matplotlib is importable and ``plot``,
+    row_distance.png (the distance along the travel, with the set distance and its band)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    js = out / "row_distance.json"
+    js.write_text(json.dumps(rd.to_dict(), indent=2) + "\n", encoding="utf-8")
+    written = [js]
+    if plot:
+        try:
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+        except ImportError:
+            return written
+        fig, ax = plt.subplots(figsize=(9, 3))
+        ax.axhspan(rd.set_m - rd.band_m, rd.set_m + rd.band_m, color="0.9", label=f"{rd.set_m:g} +- {rd.band_m:g} m")
+        ax.plot(rd.travel_m, rd.distance_m, "b-", lw=1, label="distance from the row's design line")
+        ax.set_xlabel("travel, m")
+        ax.set_ylabel("m")
+        ax.set_title(f"row distance: mean {rd.mean_m:.3f} m, {rd.min_m:.3f}-{rd.max_m:.3f} m, "
+                     f"{100 * rd.within:.1f} % within the band")
+        ax.legend(fontsize=8, loc="best")
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        png = out / "row_distance.png"
+        fig.savefig(png, dpi=100)
+        plt.close(fig)
+        written.append(png)
     return written
 
 

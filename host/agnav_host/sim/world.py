@@ -238,6 +238,8 @@ class World:
     steps: list[Step] = field(default_factory=list)
     ruts: list[Rut] = field(default_factory=list)
     bounds: tuple[float, float, float, float] = (-10.0, -10.0, 10.0, 10.0)
+    # each plant row's design line (k, 2), m: the polyline its plants were laid along before their jitter
+    row_lines: list[FloatArray] = field(default_factory=list)
 
     def add_segments(self, seg: Segments) -> None:
         self.segments = np.vstack((self.segments, np.asarray(seg, dtype=float).reshape(-1, 4)))
