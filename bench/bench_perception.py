@@ -348,7 +348,6 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False,
     estimate is then not compared (NaN). ``jitter_m``: the planting jitter of every row, the calibration rows
     included (None: the scenario's)."""
     from agnav_host.sil.session import run_sil_scenario
-    from agnav_host.sim.world import sine_curve
 
     out = []
     # the robot drives 1 m to the right of the row, so the row is on its left
@@ -356,11 +355,10 @@ def bench_proximity(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False,
     assert cals[0].laser is not None
     params = ProximityFollowerParams(side="left", distance_m=1.0, speed_m_s=0.5, mount=cals[0].laser.mount)
     half_width_m = float(np.mean([calibrate_half_width(c, params) for c in cals]))
-    # the row's centre (plant) line exactly as the scenario parser lays the bushes along it
-    centre = sine_curve(0.0, 0.0, 0.0, 48.0, 1.5, 24.0)
     for seed in seeds:
         sc = curvy_row_scenario(seed, jitter_m)
         assert sc.laser is not None
+        centre = sc.world.row_lines[0]  # the row's design (plant) line, along which the parser laid the bushes
         ctrl = ProximityFollower(replace(params, row_half_width_m=half_width_m))
         own: list[tuple[float, float]] = []  # (t, the follower's own distance estimate)
 
