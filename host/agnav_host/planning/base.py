@@ -484,8 +484,8 @@ class MoverGuard:
     soon (a person crossing ahead is let by; one heading for where the robot stands is not waited for).
 
     ``update(obs)`` once per step (every scan, so that the tracks stay tracked), then ``stand(obs, v, w)``.
-    The tracker costs 0.30-0.80 ms per step (0.68 ms in plant rows with the movers-only update used here), which is why the planners that use
-    it have it off by default (``horizon_s`` 0)."""
+    The tracker costs 0.30-0.80 ms per step (0.68 ms in plant rows with the movers-only update used here),
+    which is why the planners that use it have it off by default (``horizon_s`` 0)."""
 
     def __init__(self, spec: RobotSpec, horizon_s: float, margin_m: float = 0.1) -> None:
         from ..perception._tracking import ObstacleTracker, TrackerParams
