@@ -446,6 +446,11 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         print(f"  distance from the row (design line, past the first {rows.settle_m:g} m of travel): mean {rows.mean_m:.3f} m, "
               f"sd {rows.sd_m:.3f}, {rows.min_m:.3f}-{rows.max_m:.3f} m, {100 * rows.within:.1f} % within "
               f"{rows.set_m:g} +- {rows.band_m:g} m")
+    elif ns.planner == "proximity" and sc.world.row_lines:
+        from .sim.metrics import ROW_SETTLE_M
+
+        print(f"  distance from the row: not measured (the robot drove less than the first {ROW_SETTLE_M:g} m; "
+              "no row_distance.json)")
     for p in paths:
         print(f"  wrote {p}")
     return 0

@@ -60,3 +60,10 @@ def test_sim_proximity_writes_and_prints_the_row_distance(tmp_path, capsys):
 def test_sim_other_planners_write_no_row_distance(tmp_path):
     assert main(["sim", "curvy_row", "--duration", "2", "--out", str(tmp_path), "--quiet", "--no-plot", "--no-rrd"]) == 0
     assert not (tmp_path / "row_distance.json").exists()
+
+
+def test_sim_proximity_too_short_to_measure_says_so(tmp_path, capsys):
+    assert main(["sim", "curvy_row", "--planner", "proximity", "--duration", "0.5", "--out", str(tmp_path),
+                 "--quiet", "--no-plot", "--no-rrd"]) == 0
+    assert "not measured" in capsys.readouterr().out
+    assert not (tmp_path / "row_distance.json").exists()

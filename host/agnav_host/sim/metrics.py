@@ -301,7 +301,10 @@ class RowDistance:
                 "max_m": round(self.max_m, ndigits), "within_band": round(self.within, ndigits)}
 
 
-def row_distance(px: FloatArray, py: FloatArray, lines: list[FloatArray], set_m: float, settle_m: float = 2.0,
+ROW_SETTLE_M = 2.0  # row_distance: the travel (m) left out at the start, while the follower settles
+
+
+def row_distance(px: FloatArray, py: FloatArray, lines: list[FloatArray], set_m: float, settle_m: float = ROW_SETTLE_M,
                  band_m: float = 0.05) -> RowDistance | None:
     """:class:`RowDistance` of a driven path (px, py) against the row design lines ``lines`` (each (k, 2)):
     at each sample the distance to the nearest line. None when there is no line or the robot never drove
