@@ -190,10 +190,15 @@ def curvy_row_scenario(seed: int, jitter_m: float | None = None) -> Scenario:
     return parse_scenario(text, f"<curvy_row seed {seed}>")
 
 
+def _on_design_line(x_m: float) -> tuple[float, float]:
+    """(y m, heading rad) of the curvy_row's design line y = 1.5 sin(2 pi x / 24) at ``x_m``."""
+    k = 2 * math.pi / 24.0
+    return 1.5 * math.sin(k * x_m), math.atan(1.5 * k * math.cos(k * x_m))
+
+
 def _beside_row(x_m: float, side: str, distance_m: float) -> Pose2D:
     """Pose on the path ``distance_m`` from the curvy_row centre line (y = 1.5 sin(2 pi x / 24)), heading along it."""
-    k = 2 * math.pi / 24.0
-    yr, th = 1.5 * math.sin(k * x_m), math.atan(1.5 * k * math.cos(k * x_m))
+    yr, th = _on_design_line(x_m)
     sgn = 1.0 if side == "left" else -1.0  # the row is on this side of the robot
     return Pose2D(x_m + sgn * math.sin(th) * distance_m, yr - sgn * math.cos(th) * distance_m, th)
 
@@ -296,9 +301,8 @@ def bush_face_floor(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), windows_m: tuple[f
 def _row_frames(bc: np.ndarray, stations_x: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The bush centres ``bc`` in the frame of each station on the curvy row's design line (origin on the line,
     x along its tangent): (along, across) per station."""
-    k = 2 * math.pi / 24.0
     for x0 in stations_x:
-        y0, th = 1.5 * math.sin(k * x0), math.atan(1.5 * k * math.cos(k * x0))
+        y0, th = _on_design_line(float(x0))
         c, s = math.cos(th), math.sin(th)
         dx, dy = bc[:, 0] - x0, bc[:, 1] - y0
         yield c * dx + s * dy, -s * dx + c * dy
