@@ -335,17 +335,6 @@ def _planner_names() -> list[str]:
     return planner_names()
 
 
-def _row_distance(sc: Any, planner: str, trajectory: Any) -> Any:
-    """For the proximity follower on a scenario with plant rows: how far the run kept from the nearest row's
-    design line (:func:`agnav_host.sim.metrics.row_distance`, the set distance from ``meta.follow_offset_m``,
-    default 1 m); None for any other run."""
-    from .sim.metrics import row_distance
-
-    if planner != "proximity" or not sc.world.row_lines:
-        return None
-    return row_distance(trajectory[:, 1], trajectory[:, 2], sc.world.row_lines, float(sc.meta.get("follow_offset_m", 1.0)))
-
-
 @subcommand(
     "sim",
     help="run a simulator scenario and write summary.json and trajectory.csv",
@@ -369,6 +358,7 @@ def _row_distance(sc: Any, planner: str, trajectory: Any) -> Any:
     ],
 )
 def _cmd_sim(ns: argparse.Namespace) -> int:
+    from .sim.metrics import ROW_SETTLE_M, row_distance
     from .sim.runner import run_scenario, write_outputs, write_row_distance
     from .sim.scenario import ScenarioError, load_scenario, run_length_problem
     from .types import Goal
@@ -431,7 +421,11 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         if not ns.quiet:
             print(file=sys.stderr)
         write = lambda: write_outputs(result, ns.out, plot=not ns.no_plot)  # noqa: E731
-    rows = _row_distance(sc, ns.planner, result.trajectory)
+    # the proximity follower on plant rows: how far the run kept from the nearest row's design line (the set
+    # distance meta.follow_offset_m, default 1 m)
+    row_run = ns.planner == "proximity" and bool(sc.world.row_lines)
+    rows = (row_distance(result.trajectory[:, 1], result.trajectory[:, 2], sc.world.row_lines,
+                         float(sc.meta.get("follow_offset_m", 1.0))) if row_run else None)
     try:
         paths = write()
         if rows is not None:
@@ -446,9 +440,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
         print(f"  distance from the row (design line, past the first {rows.settle_m:g} m of travel): mean {rows.mean_m:.3f} m, "
               f"sd {rows.sd_m:.3f}, {rows.min_m:.3f}-{rows.max_m:.3f} m, {100 * rows.within:.1f} % within "
               f"{rows.set_m:g} +- {rows.band_m:g} m")
-    elif ns.planner == "proximity" and sc.world.row_lines:
-        from .sim.metrics import ROW_SETTLE_M
-
+    elif row_run:
         print(f"  distance from the row: not measured (the robot drove less than the first {ROW_SETTLE_M:g} m; "
               "no row_distance.json)")
     for p in paths:

@@ -313,10 +313,10 @@ def row_distance(px: FloatArray, py: FloatArray, lines: list[FloatArray], set_m:
     if not lines or len(px) < 2:
         return None
     d = np.full(len(px), np.inf)
-    for ln in lines:
+    for ln in (np.asarray(ln, dtype=float) for ln in lines):
         for i in range(0, len(px), 2000):  # in pieces: a (samples x segments) array per piece, not per run
             part = slice(i, i + 2000)
-            d[part] = np.minimum(d[part], np.abs(along_and_offset_m(px[part], py[part], np.asarray(ln, dtype=float))[1]))
+            d[part] = np.minimum(d[part], np.abs(along_and_offset_m(px[part], py[part], ln)[1]))
     travel = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(px), np.diff(py)))))
     keep = travel >= settle_m
     if not keep.any():

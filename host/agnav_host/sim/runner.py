@@ -13,11 +13,9 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from ..types import DriveCommand, Goal, Observation, SonarFrame
 
@@ -268,14 +266,8 @@ def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) 
     js = out / "row_distance.json"
     js.write_text(json.dumps(rd.to_dict(), indent=2) + "\n", encoding="utf-8")
     written = [js]
-    if plot:
-        try:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-        except ImportError:
-            return written
+    plt = _pyplot() if plot else None
+    if plt is not None:
         fig, ax = plt.subplots(figsize=(9, 3))
         ax.axhspan(rd.set_m - rd.band_m, rd.set_m + rd.band_m, color="0.9", label=f"{rd.set_m:g} +- {rd.band_m:g} m")
         ax.plot(rd.travel_m, rd.distance_m, "b-", lw=1, label="distance from the row's design line")
@@ -293,13 +285,21 @@ def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) 
     return written
 
 
-def _try_plot(result: RunResult, path: Path) -> Path | None:
+def _pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend, or None when matplotlib is not installed."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
+        return None
+    return plt
+
+
+def _try_plot(result: RunResult, path: Path) -> Path | None:
+    plt = _pyplot()
+    if plt is None:
         return None
     fig, ax = plt.subplots(figsize=(6, 6))
     ax.plot(result.trajectory[:, 1], result.trajectory[:, 2], "b-", lw=1)

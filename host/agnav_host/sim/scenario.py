@@ -573,7 +573,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                           f"{length:.4g} m of row every {plant_spacing:g} m x cluster {cluster} x count {count}")
         for k in range(count):
             world.row_lines.append(base + k * spacing * normal)
-            world.add_circles(plants_along(base + k * spacing * normal, plant_spacing,
+            world.add_circles(plants_along(world.row_lines[-1], plant_spacing,
                                            rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
                                            cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps))
     for i, w in enumerate(rd.tables(data, "weeds")):
