@@ -24,19 +24,21 @@ DEFAULT_OUT = "bench/results/planners"
 BENCH_OUTPUTS = ("runs.csv", "summary.csv", "planners.md", "paths_*.png", "speed_*.png", "curvature_*.png")
 
 
-@subcommand("planners", help="list the host planners and perception controllers (names for agnav sim --planner)")
+@subcommand("planners", help="list every controller (names for agnav sim / agnav run --planner) and the sensors each needs")
 def _cmd_planners(ns: argparse.Namespace) -> int:
-    from .registry import describe
+    from .registry import CONTROLLERS, WRAPPERS
 
-    from ..sim.field_controllers import FIELD_CONTROLLERS, GUARD_SUFFIX
-
-    for name, summary in describe().items():
-        print(f"{name:13s} {summary}")
-    print("perception controllers (agnav sim only: built from the scenario's field and [meta]):")
-    for name, summary in FIELD_CONTROLLERS.items():
-        print(f"{name:13s} {summary}")
-    print(f"(any name{GUARD_SUFFIX}: the same with the tilted laser's holes and steps as obstacles; goal_seek = the "
-          "simulator's stand-in)")
+    heads = {"planner": "planners:", "field": "field controllers (built from the field: --row-side, --row-offset, "
+                                                "--row-method, --turns or [field] in the host config; a scenario's [meta] "
+                                                "in agnav sim):", "stand-in": "stand-in:"}
+    for kind, head in heads.items():
+        print(head)
+        for name, e in CONTROLLERS.items():
+            if e.kind == kind:
+                print(f"  {name:13s} {e.summary} [needs: {', '.join(e.sensors) or 'odometry only'}]")
+    print("wrappers (NAME+WRAPPER, e.g. him+ground-guard):")
+    for name, (summary, sensors) in WRAPPERS.items():
+        print(f"  +{name:12s} {summary} [needs: {', '.join(sensors)}]")
     return 0
 
 

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from ..types import DriveCommand, Goal, Observation, SonarFrame
+from ..hostloop import HostLoop, SensorFrame
+from ..types import DriveCommand, Goal, SonarFrame
 
 if TYPE_CHECKING:
     from ..planning.base import RobotSpec
@@ -46,12 +46,12 @@ class RunResult:
 
 
 def planner_names() -> list[str]:
-    """Every name ``run_scenario`` accepts: the stand-ins, the host planners of agnav_host.planning and the
-    perception controllers of :mod:`.field_controllers` (any of them also with ``+ground-guard``)."""
-    from ..planning.registry import planner_names as host_planners
-    from .field_controllers import field_controller_names
+    """Every base name ``run_scenario`` accepts: the controllers of the one registry
+    (:func:`agnav_host.planning.registry.controller_names`; any of them also with ``+ground-guard`` or
+    ``+mover-guard``)."""
+    from ..planning.registry import controller_names
 
-    return sorted(STANDINS) + host_planners() + field_controller_names()
+    return controller_names()
 
 
 def control_every(sc: Scenario) -> int:
@@ -84,18 +84,9 @@ def robot_spec(sc: Scenario) -> "RobotSpec":
 
 
 def _make_controller(sc: Scenario, planner: str) -> Controller:
-    from .field_controllers import is_field_controller, make_field_controller
+    from .field_controllers import make_scenario_controller
 
-    if is_field_controller(planner):
-        return make_field_controller(sc, planner, _make_controller)
-    if planner in STANDINS:
-        return make_standin(planner, _standin_params(sc))
-    from ..planning.registry import canonical_name, make_planner
-
-    name = canonical_name(planner)  # UnknownPlanner (a ValueError) lists the names
-    table = sc.meta.get("planner_params", {})
-    params = table.get(name) if isinstance(table, dict) else None
-    return make_planner(name, robot_spec(sc), dict(params) if isinstance(params, dict) else None)
+    return make_scenario_controller(sc, planner)
 
 
 class _SonarSlots:
@@ -120,13 +111,9 @@ class _SonarSlots:
 
 
 def _standin_params(sc: Scenario) -> GoalSeekParams:
-    p = sc.robot_params
-    if isinstance(p, AckermannParams):
-        vmin = p.true_speed.pos_value[0] if p.true_speed is not None and p.true_speed.pos_value else 0.0
-        return GoalSeekParams(kinematics="ackermann", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s, min_speed_m_s=vmin,
-                              wheelbase_m=p.wheelbase_m, max_steer_rad=p.max_steer_rad, margin_m=0.1, lookahead_m=2.5,
-                              footprint_offset_m=0.5 * p.wheelbase_m)
-    return GoalSeekParams(kinematics="diff_drive", radius_m=p.radius_m, max_speed_m_s=sc.max_speed_m_s)
+    from ..planning.registry import _standin_params as from_spec
+
+    return from_spec(robot_spec(sc))
 
 
 def run_scenario(
@@ -159,12 +146,13 @@ def run_scenario(
     if too_long:  # before the trajectory is allocated
         raise ValueError(too_long)
     ctrl = controller if controller is not None else _make_controller(sc, planner)
-    ctrl.reset()
-    use_tilted = sc.tilted_laser is not None and bool(getattr(ctrl, "uses_tilted_laser", False))
-    sonar_slots = _SonarSlots(sc) if sc.sonar is not None and getattr(ctrl, "uses_sonar", False) else None
-    extras: dict[str, object] = {"goals": list(sc.goals), "goal_index": 0, "meta": sc.meta}
+    static: dict[str, object] = {"meta": sc.meta}
     if "path" in sc.meta:
-        extras["path"] = np.asarray(sc.meta["path"], dtype=float)
+        static["path"] = np.asarray(sc.meta["path"], dtype=float)
+    loop = HostLoop(ctrl, list(sc.goals), laser_mount=sc.laser.mount if sc.laser is not None else None,
+                    tilted_mount=sc.tilted_laser.mount if sc.tilted_laser is not None else None, extras=static)
+    use_tilted = sc.tilted_laser is not None and "tilted_laser" in loop.needs
+    sonar_slots = _SonarSlots(sc) if sc.sonar is not None and "sonar" in loop.needs else None
     times: list[float] = []
     ss = np.random.SeedSequence(seed)
     rng_robot, rng_laser, rng_sonar, rng_tilted = (np.random.default_rng(s) for s in ss.spawn(4))  # first 3 as before
@@ -189,16 +177,17 @@ def run_scenario(
     for k in range(1, n_steps + 1):
         t_prev = (k - 1) * dt
         if (k - 1) % ctrl_every == 0:
-            scan = sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None
-            sonar = sonar_slots.frame(world, robot.pose, t_prev, rng_sonar) if sonar_slots is not None else None
-            extras["goal_index"] = gi
-            if use_tilted:
-                assert sc.tilted_laser is not None
-                extras["tilted_scan"] = sc.tilted_laser.scan(world, robot.pose, t_prev, rng_tilted)
-            obs = Observation(t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s, sc.goals[gi], scan, sonar, extras)
-            t0 = time.perf_counter()
-            cmd = ctrl.step(obs)
-            times.append(time.perf_counter() - t0)
+            # the simulator's sources: the true pose (an ideal pose source), the scans cast from it
+            frame = SensorFrame(
+                t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s,
+                scan=sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None,
+                tilted_scan=sc.tilted_laser.scan(world, robot.pose, t_prev, rng_tilted) if use_tilted else None,  # type: ignore[union-attr]
+                sonar=sonar_slots.frame(world, robot.pose, t_prev, rng_sonar) if sonar_slots is not None else None,
+                goal_index=gi)
+            decision = loop.step(frame)
+            if decision.command is not None:
+                cmd = decision.command
+            times.append(decision.step_s)
         robot.step(cmd, dt, rng_robot)
         t = k * dt
         cl = clearance(t)
