@@ -22,19 +22,22 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import TYPE_CHECKING, Callable, Protocol
 
 import numpy as np
 
 from ..sim.metrics import RunMetrics
 from ..sim.runner import HOLE_FALL_DEPTH_M, RunResult, _standin_params, write_outputs
-from ..sim.controller import Controller, GoalSeekParams, make_standin
+from ..sim.controller import Controller, GoalSeekParams
 from ..sim.scenario import Scenario
-from ..types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
+from ..types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
 from .binding import Firmware, _COutputs
 from .host import HostEndpoint
 from .link import LinkChannel, LinkParams, Tlog
 from .plant import Plant, PlantConfig
+
+if TYPE_CHECKING:
+    from ..hostloop import SensorFrame
 
 __all__ = ["SilConfig", "SilSession", "HostLogic", "PlannerHost", "SilRunResult", "run_sil_scenario",
            "write_sil_outputs", "FIRMWARE_CSV_COLUMNS"]
@@ -243,26 +246,25 @@ class SilSession:
 
 
 class PlannerHost:
-    """The host companion: heartbeats, a planner on the laser and the firmware's odometry, and
-    AGNAV_DRIVE_SETPOINT at ``control_hz``. The laser hangs off the host (it is read from the true
-    pose) but the planner places it with the believed pose, as the real host does."""
+    """The host companion on the SIL's link: heartbeats, and at ``control_hz`` one step of the host loop
+    (:class:`~agnav_host.hostloop.HostLoop`) on the firmware's odometry, its sonar ring and the scenario's lasers,
+    sent as AGNAV_DRIVE_SETPOINT. The lasers hang off the host (they are cast from the true pose) but the loop
+    places their scans with the believed pose, as on a robot."""
 
     def __init__(self, sc: Scenario, planner: str = "goal_seek", heartbeat_hz: float = 2.0,
                  control_hz: float | None = None, behaviours: tuple[bool, bool, bool] | None = None,
                  controller: Controller | None = None) -> None:
+        from ..hostloop import HostLoop
+        from ..perception._health import LaserWatchdog
+        from ..sim.field_controllers import make_scenario_controller
+        from ..sim.runner import robot_spec
+
         self.sc = sc
         if controller is not None:  # built by the caller (e.g. a perception follower); planner is its label
             self.ctrl = controller
-        elif planner == "goal_seek":
-            self.ctrl = make_standin(planner, self.planner_params(sc))
-        else:  # a host planner of agnav_host.planning, built as the ideal runner builds it
-            from ..sim import runner as _runner
-
-            self.ctrl = _runner._make_controller(sc, planner)  # type: ignore[attr-defined]
-        self.ctrl.reset()
-        self.uses_sonar = bool(getattr(self.ctrl, "uses_sonar", False))
-        # a scenario's tilted laser (ruts, holes) for a controller that reads it, as the ideal runner does
-        self.uses_tilted = sc.tilted_laser is not None and bool(getattr(self.ctrl, "uses_tilted_laser", False))
+        else:  # the registry's controller, as the ideal runner builds it (the stand-in with a wider margin)
+            self.ctrl = make_scenario_controller(sc, planner, self.planner_params(sc) if planner == "goal_seek" else None)
+        self.spec = robot_spec(sc)
         self.hb_us = int(1e6 / heartbeat_hz)
         self.ctrl_us = int(1e6 / (control_hz or sc.control_hz))
         self.next_hb = 0
@@ -270,7 +272,6 @@ class PlannerHost:
         self.goal_index = 0
         self.behaviours = behaviours
         self.commands: list[tuple[int, DriveCommand]] = []
-        self.turn_speed_m_s = 0.1
         self.max_steer_rad = math.radians(45.0 if sc.robot_kind != "ackermann" else 30.0)  # MAX_STEER_CDEG
         # surveyed marker posts in the scenario (meta.landmarks) and a laser: odometry fused with the
         # posts the laser sees (agnav_host.localisation) instead of odometry alone
@@ -283,15 +284,17 @@ class PlannerHost:
         # The laser is checked before anything plans on it (perception._health); a fault holds the
         # robot with zero setpoints until the laser is healthy again. laser_fault (tests and the
         # fault suite) turns each true scan into what a broken laser would deliver.
-        from ..perception._health import LaserWatchdog
-
         self.laser_health = LaserWatchdog()
-        self.laser_faults_reported = 0
         self.laser_fault: Callable[[LaserScan, float], LaserScan] | None = None
         self.events: list[tuple[int, str]] = []  # (t_us, text): what the host decided and why
         # optional: more Observation.extras for the planner at each control step (e.g. a stand-in for a
         # tracker's moving-obstacle tracks in a benchmark); called with the session
         self.observation_extras: Callable[[SilSession], dict[str, object]] | None = None
+        self.loop = HostLoop(self.ctrl, list(sc.goals), laser_mount=sc.laser.mount if sc.laser is not None else None,
+                             tilted_mount=sc.tilted_laser.mount if sc.tilted_laser is not None else None,
+                             localiser=self.localiser, watchdog=self.laser_health)
+        self.uses_sonar = "sonar" in self.loop.needs
+        self.uses_tilted = sc.tilted_laser is not None and "tilted_laser" in self.loop.needs
 
     @staticmethod
     def planner_params(sc: Scenario) -> GoalSeekParams:
@@ -304,20 +307,11 @@ class PlannerHost:
                               margin_m=0.2)
 
     def to_setpoint(self, cmd: DriveCommand) -> tuple[float, float]:
-        """(steer_rad, speed_m_s) for the firmware. It takes a steering angle for every drive kind
-        and turns a differential robot like a car of wheelbase = track (drive.h), so it cannot turn
-        on the spot: a turn on the spot becomes the tightest arc *backwards* at a crawl
-        (``turn_speed_m_s``), i.e. a three-point turn that also opens room ahead."""
-        if cmd.steer_rad is not None:
-            return cmd.steer_rad, cmd.speed_m_s
-        track = self.sc.robot_params.track_m
-        v = cmd.speed_m_s
-        if abs(v) < 1e-6:
-            if abs(cmd.yaw_rate_rad_s) < 1e-6:
-                return 0.0, 0.0
-            return -math.copysign(self.max_steer_rad, cmd.yaw_rate_rad_s), -self.turn_speed_m_s
-        steer = math.atan(track * cmd.yaw_rate_rad_s / v)
-        return max(-self.max_steer_rad, min(self.max_steer_rad, steer)), v
+        """(steer_rad, speed_m_s) for the firmware (:func:`agnav_host.hostloop.firmware_setpoint`)."""
+        from ..hostloop import firmware_setpoint
+
+        sp = self.spec
+        return firmware_setpoint(cmd, sp.kinematics, sp.track_m, sp.wheelbase_m, self.max_steer_rad)
 
     @staticmethod
     def sonar_frame(s: SilSession) -> SonarFrame | None:
@@ -329,23 +323,28 @@ class PlannerHost:
         r = np.where(st == 0, np.array(f.ranges_mm[:12], dtype=float) * 1e-3, np.nan)
         return SonarFrame(f.t_us * 1e-6, st != 3, r * 2.0 / 343.0 * 1e6, r)
 
-    def _localise(self, s: SilSession) -> Pose2D:
-        """Odometry report (when new) and this step's laser scan into the localiser; its pose now."""
-        loc = self.localiser
-        assert loc is not None and self.sc.laser is not None
-        o = s.host.odometry
-        if o is not None and o.time_boot_ms != self._odo_stamp_ms:
-            self._odo_stamp_ms = o.time_boot_ms
-            loc.odometry(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
-        self._scan = self._read_laser(s)
-        if self.laser_health.update(self._scan, s.t_s).ok:  # a failed laser must not move the pose
-            loc.scan(self._scan.ranges_m, self._scan.angles_rad, s.t_s, self._scan.range_max_m)
-        return loc.pose_at(s.t_s)
-
     def _read_laser(self, s: SilSession) -> LaserScan:
         assert self.sc.laser is not None
         scan = self.sc.laser.scan(s.plant.world, s.pose, s.t_s, s.rng_laser)
         return scan if self.laser_fault is None else self.laser_fault(scan, s.t_s)
+
+    def frame(self, s: SilSession) -> "SensorFrame":
+        """The SIL's sources for one control step: the firmware's odometry (a report only when new) and sonar
+        ring, the scenario's lasers cast from the true pose, the referee's goal index."""
+        from ..hostloop import OdometryReport, SensorFrame
+
+        o = s.host.odometry
+        report = None
+        if o is not None and o.time_boot_ms != self._odo_stamp_ms:
+            self._odo_stamp_ms = o.time_boot_ms
+            report = OdometryReport(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
+        tl = self.sc.tilted_laser
+        return SensorFrame(
+            s.t_s, s.believed_pose(), o.speed_m_s if o is not None else 0.0, o.yaw_rate_rad_s if o is not None else 0.0,
+            odometry=report, scan=self._read_laser(s) if self.sc.laser is not None and o is not None else None,
+            tilted_scan=tl.scan(s.plant.world, s.pose, s.t_s, s.rng_tilted) if self.uses_tilted and tl is not None and o is not None else None,
+            sonar=self.sonar_frame(s) if self.uses_sonar else None, goal_index=self.goal_index,
+            extras=self.observation_extras(s) if self.observation_extras is not None and o is not None else None)
 
     def __call__(self, s: SilSession, t_us: int) -> None:
         h = s.host
@@ -358,36 +357,16 @@ class PlannerHost:
         if t_us < self.next_ctrl:
             return
         self.next_ctrl += self.ctrl_us
-        pose = s.believed_pose()
-        if pose is None:
+        d = self.loop.step(self.frame(s))
+        if d.event:
+            self.events.append((t_us, d.event))
+        if d.command is None:
             return
-        if self.localiser is not None:
-            pose = self._localise(s)
-        goal = self.sc.goals[min(self.goal_index, len(self.sc.goals) - 1)]
-        scan = None
-        if self.sc.laser is not None:
-            true = self._scan if self.localiser is not None else self._read_laser(s)
-            health = self.laser_health.health if self.localiser is not None else self.laser_health.update(true, s.t_s)
-            if not health.ok:  # the laser has failed: hold the robot, say why once per fault
-                if self.laser_faults_reported < self.laser_health.faults:
-                    self.laser_faults_reported = self.laser_health.faults
-                    self.events.append((t_us, f"laser fault: {health.reason}; holding the robot"))
-                h.setpoint(0, 0)
-                return
-            scan = LaserScan(true.angle_min_rad, true.angle_increment_rad, true.ranges_m, true.range_max_m, true.stamp_s,
-                             pose.compose(self.sc.laser.mount))
-        o = h.odometry
-        assert o is not None
-        sonar = self.sonar_frame(s) if self.uses_sonar else None
-        extras = self.observation_extras(s) if self.observation_extras is not None else {}
-        if self.uses_tilted:
-            tl = self.sc.tilted_laser
-            assert tl is not None
-            ts = tl.scan(s.plant.world, s.pose, s.t_s, s.rng_tilted)  # cast from the true pose, placed with the believed one
-            extras["tilted_scan"] = replace(ts, pose=pose.compose(tl.mount))
-        cmd = self.ctrl.step(Observation(s.t_s, pose, o.speed_m_s, o.yaw_rate_rad_s, goal, scan, sonar, extras))
-        h.setpoint_si(*self.to_setpoint(cmd))
-        self.commands.append((t_us, cmd))
+        if d.hold:
+            h.setpoint(0, 0)
+            return
+        h.setpoint_si(*self.to_setpoint(d.command))
+        self.commands.append((t_us, d.command))
 
 
 @dataclass
