@@ -58,7 +58,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Iterator
+from typing import IO, Any
 
 import numpy as np
 
@@ -366,9 +366,10 @@ class LaserLogReader:
 
     Iterate it for :class:`LogScan` records (only laser ``laser_id``'s when given). The file is opened and its
     header checked on construction (OSError, :class:`NotALaserLogError`); a broken record raises
-    :class:`LaserLogError` when reached. ``truncated_bytes`` is the size of a cut-off last record that was
-    ignored (0: none; ``truncated`` counts such records, 0 or 1); ``declarations`` lists the LASR records
-    read so far. The file is closed at the end, on an error or by :meth:`close`.
+    :class:`LaserLogError` when reached (``decode=False`` leaves the ranges empty: for counting and checking).
+    ``truncated_bytes`` is the size of a cut-off last record that was ignored (0: none; ``truncated`` counts
+    such records, 0 or 1); ``declarations`` lists the LASR records read so far. The file is closed at the end,
+    on an error or by :meth:`close`.
     """
 
     def __init__(self, path: str | Path, laser_id: int | None = None, *, decode: bool = True) -> None:
@@ -451,11 +452,11 @@ class LaserLogReader:
                 raise self._error(at, f"unknown record tag {shown!r} (known: LASR, SCAN)")
             if length < _SCAN.size:
                 raise self._error(at, f"SCAN record of {length} bytes, shorter than its {_SCAN.size}-byte header")
-            payload = f.read(length)
+            payload = f.read(_SCAN.size)  # the fixed part first: the length is checked before the rest is read
             if len(payload) < _SCAN.size:
                 self._cut(_REC.size + len(payload))
                 return None
-            lid, t, n = _SCAN.unpack_from(payload)
+            lid, t, n = _SCAN.unpack(payload)
             decl = self._decl.get(lid)
             if decl is None:
                 raise self._error(at, f"SCAN of laser {lid} before its LASR declaration")
@@ -466,6 +467,7 @@ class LaserLogReader:
             if length not in (base, base + 1, base + 1 + _POSE.size):
                 raise self._error(at, f"SCAN record of {length} bytes does not fit {n} beams (expected {base}, "
                                       f"{base + 1} or {base + 1 + _POSE.size})")
+            payload += f.read(length - _SCAN.size)
             if len(payload) < length:
                 self._cut(_REC.size + len(payload))
                 return None
@@ -487,7 +489,7 @@ class LaserLogReader:
                 continue
             if self.decode:
                 mm = np.frombuffer(payload, dtype="<u2", count=n, offset=_SCAN.size).astype(float)
-                ranges = np.where((mm > 0) & (mm < _NO_RETURN_MM), mm * 0.001, np.nan)
+                ranges = np.where((mm > 0) & (mm < _NO_RETURN_MM), mm / 1000.0, np.nan)
             else:
                 ranges = np.empty(0)
             sensor = pose.compose(decl.mount.pose) if pose is not None else None

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Callable, Protocol
 import numpy as np
 
 from ..sim.metrics import RunMetrics
-from ..sim.runner import HOLE_FALL_DEPTH_M, RunResult, _standin_params, write_outputs
+from ..sim.referee import Referee
+from ..sim.runner import RunResult, _standin_params, write_outputs
 from ..sim.controller import Controller, GoalSeekParams
 from ..sim.scenario import Scenario
 from ..types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
@@ -400,8 +401,7 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
         rec_every = max(1, int(round(sc.dt_s / s.cfg.world_dt_s)))
         n_steps = int(round(duration / s.cfg.world_dt_s))
         rows = [(0.0, s.pose.x_m, s.pose.y_m, s.pose.yaw_rad, 0.0, 0.0, s.plant.clearance(0.0), 0)]
-        reason = "timeout"
-        arrival_s = None
+        referee = Referee(sc)
         gi = 0
         prog_every = max(1, int(round(1.0 / s.cfg.world_dt_s)))
         for k in range(1, n_steps + 1):
@@ -414,30 +414,17 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
                 rows.append((t, p.x_m, p.y_m, p.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl, gi))
             if progress is not None and k % prog_every == 0:
                 progress(t, duration)
-            if cl < 0.0:
-                reason = "collision"
+            if referee.judge(t, r, cl) is not None:
+                if referee.reason == "arrived" and rows[-1][0] != t:
+                    rows.append((t, p.x_m, p.y_m, p.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl, gi))
                 break
-            if sc.world.holes:
-                cx, cy = r.footprint_centre()
-                if float(s.plant.world.ground_height_m(np.array(cx), np.array(cy))) < -HOLE_FALL_DEPTH_M:
-                    reason = "fell_in_hole"
-                    break
-            g = sc.goals[gi]
-            if math.hypot(g.x_m - p.x_m, g.y_m - p.y_m) <= g.tolerance_m:
-                if gi + 1 < len(sc.goals):
-                    gi += 1
-                    host.goal_index = gi
-                else:
-                    reason = "arrived"
-                    arrival_s = t
-                    if rows[-1][0] != t:
-                        rows.append((t, p.x_m, p.y_m, p.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl, gi))
-                    break
+            gi = host.goal_index = referee.goal_index
         arr = np.array(rows, dtype=float)
         last = sc.goals[-1]
         metrics = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6],
-                                     (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s)
-        run = RunResult(sc.name, planner, seed, metrics, arr, reason)
+                                     (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, referee.reason == "arrived",
+                                     referee.arrival_s)
+        run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason)
         status = [(st.t_us * 1e-6, st.time_boot_ms, st.layer, st.reason, st.failsafe_flags, st.steer_cdeg, st.speed_mm_s)
                   for st in s.host.status_log]
         stats = {"up_frames": s.up.frames_sent, "up_lost": s.up.frames_lost, "up_dropped": s.up.frames_dropped,

@@ -23,13 +23,13 @@ if TYPE_CHECKING:
     from ..planning.base import RobotSpec
 from .controller import STANDINS, Controller, GoalSeekParams, make_standin
 from .metrics import RowDistance, RunMetrics
+from .referee import HOLE_FALL_DEPTH_M, Referee
 from .robots import AckermannParams
 from .scenario import Scenario, run_length_problem
 
 __all__ = ["RunResult", "run_scenario", "control_every", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
 
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
-HOLE_FALL_DEPTH_M = 0.1  # the robot's centre over ground this far below nominal counts as fallen in
 
 
 @dataclass
@@ -165,8 +165,7 @@ def run_scenario(
     gi = 0
     cmd = DriveCommand()
     rows = np.zeros((n_steps + 1, len(TRAJECTORY_COLUMNS)))
-    reason = "timeout"
-    arrival_s: float | None = None
+    referee = Referee(sc)
 
     def clearance(t: float) -> float:
         cx, cy = robot.footprint_centre()
@@ -195,29 +194,16 @@ def run_scenario(
         rows[k] = (t, p.x_m, p.y_m, p.yaw_rad, robot.speed_m_s, robot.yaw_rate_rad_s, cl, gi)
         if progress is not None and k % prog_every == 0:
             progress(t, duration)
-        if cl < 0.0:
-            reason = "collision"
+        if referee.judge(t, robot, cl) is not None:
             break
-        if world.has_ground_features:
-            cx, cy = robot.footprint_centre()
-            if float(world.ground_height_m(np.array(cx), np.array(cy))) < -HOLE_FALL_DEPTH_M:
-                reason = "fell_in_hole"
-                break
-        g = sc.goals[gi]
-        if math.hypot(g.x_m - p.x_m, g.y_m - p.y_m) <= g.tolerance_m:
-            if gi + 1 < len(sc.goals):
-                gi += 1
-            else:
-                reason = "arrived"
-                arrival_s = t
-                break
+        gi = referee.goal_index
     rows = rows[: k + 1]
     last = sc.goals[-1]
     metrics = RunMetrics.compute(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
-        last.yaw_rad, last.arrival_s, reason == "arrived", arrival_s,
+        last.yaw_rad, last.arrival_s, referee.reason == "arrived", referee.arrival_s,
     )
-    return RunResult(sc.name, planner, seed, metrics, rows, reason, np.asarray(times))
+    return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times))
 
 
 def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:
