@@ -248,6 +248,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "agnav_host.planning.commands",
     "agnav_host.planning.timed_commands",
     "agnav_host.link.commands",
+    "agnav_host.link.run_command",
     "agnav_host.sil.commands",
     "agnav_host.faults.commands",
 )

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli import int_in, nonneg_float, parse_goal, positive_float, positive_int, subcommand, unwritable_file, up_to_a_day
+from ..cli import int_in, nonneg_float, positive_float, positive_int, subcommand, unwritable_file, up_to_a_day
 from .config import CalibrationConfig, LinkConfig
 from .tlog import MAV_TYPE_GCS
 
@@ -182,22 +182,7 @@ def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
 
 
 # ---- run ---------------------------------------------------------------------------------------
-def _robot_spec(robot: Any, cfg: Any) -> Any:
-    from ..planning.base import RobotSpec
-
-    p = {}
-    for name in ("DRIVE_KIND", "WHEELBASE_MM", "TRACK_MM", "MAX_SPEED_MM_S", "MAX_STEER_CDEG"):
-        p[name] = robot.param_get(name)
-    ack = p["DRIVE_KIND"] < 0.5
-    return RobotSpec(kinematics="ackermann" if ack else "diff_drive", wheelbase_m=p["WHEELBASE_MM"] / 1000.0,
-                     track_m=p["TRACK_MM"] / 1000.0,
-                     max_speed_m_s=min(cfg.run.max_speed_m_s, p["MAX_SPEED_MM_S"] / 1000.0 or cfg.run.max_speed_m_s),
-                     max_steer_rad=math.radians(p["MAX_STEER_CDEG"] / 100.0), stop_lag_s=0.25 if ack else 0.12)
-
-
-#: A host planner steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
-#: missed) and the planner would drive blind, so the robot is held stopped instead.
-POSE_STALE_S = 0.5
+from ..robot import POSE_STALE_S  # noqa: E402,F401  (re-exported: the fault suite and tests read it here)
 
 
 class _FirmwareGoal:
@@ -236,29 +221,6 @@ class _FirmwareGoal:
         return self.seeking or near
 
 
-def _pose_fresh(state: Any, now_s: float) -> bool:
-    p = state.pose
-    return p is not None and now_s - p.rx_time_s <= POSE_STALE_S
-
-
-def _observation(state: Any, goal: Any, t_s: float) -> Any:
-    import numpy as np
-
-    from ..types import Observation, Pose2D, SonarFrame
-
-    p = state.pose
-    pose = Pose2D(p.x_m, p.y_m, p.yaw_rad) if p else Pose2D()
-    sonar = None
-    if state.sonar is not None:
-        s = state.sonar
-        st = np.array(s.status)
-        r = np.array(s.ranges_m, dtype=float)
-        r[st != 0] = np.nan  # no echo, fault and stale carry no obstacle range
-        sonar = SonarFrame(stamp_s=t_s, fired=st != 3, echo_us=2.0 * r / 343.0 * 1e6, ranges_m=r)
-    return Observation(t_s=t_s, pose=pose, speed_m_s=p.speed_m_s if p else 0.0,
-                       yaw_rate_rad_s=p.yaw_rate_rad_s if p else 0.0, goal=goal, sonar=sonar)
-
-
 def _status_line(ep: Any, t: float) -> str:
     st = ep.state
     b = st.behaviour
@@ -269,208 +231,9 @@ def _status_line(ep: Any, t: float) -> str:
     return f"t={t:6.1f} s  {lay:34s} {pose}  link {link} {ep.meter.rate(time.monotonic()):5.0f} B/s"
 
 
-def planner_needs_laser(name: str) -> bool:
-    """True when host planner ``name`` cannot take a step without a laser scan, which `agnav run`
-    never has (the robot reports odometry and its sonar ring)."""
-    from ..planning.registry import sensors_needed
-
-    return "laser" in sensors_needed(name)
-
-
 def _plain(e: BaseException) -> str:
     """A planner's error without the internal field names (``(obs.scan is None)``)."""
     return re.sub(r"\s*\(obs\.\w+ is None\)", "", str(e))
-
-
-def _cmd_run(ns: argparse.Namespace) -> int:
-    from ..types import DriveCommand, Goal
-
-    cfg = _config(ns)
-    planner_name = ns.planner if ns.planner is not None else cfg.run.planner
-    if ns.autopilot == "ardupilot" and not planner_name:
-        _err("run", "--autopilot ardupilot needs --planner (a stock autopilot has no AgNav behaviour layers)")
-        return 2
-    goal = None
-    if ns.goal is not None:
-        gx, gy, gh = ns.goal
-        goal = Goal(gx, gy, None if gh is None else math.radians(gh), tolerance_m=cfg.run.goal_tolerance_m)
-    if planner_name and goal is None:
-        _err("run", "a host planner needs --goal X,Y[,DEG]")
-        return 2
-    planner = None
-    fw_goal: _FirmwareGoal | None = None
-    if planner_name:
-        from ..planning.registry import canonical_name
-        from ..sim.field_controllers import is_field_controller
-
-        if is_field_controller(planner_name):
-            _err("run", f"{planner_name} is a field controller built from a simulator scenario (its row, laser and "
-                        "tilted laser); it runs with `agnav sim` only, not on a robot through `agnav run`")
-            return 2
-        canonical_name(planner_name)  # UnknownPlanner (ValueError) before touching the robot
-        if planner_needs_laser(planner_name):
-            from ..planning.registry import planner_names
-
-            ok = [n for n in planner_names() if not planner_needs_laser(n)]
-            _err("run", f"planner {planner_name} needs a laser; this run has none (`agnav run` gets odometry and the "
-                        f"sonar ring from the robot): use a planner without one ({', '.join(ok)}) or the firmware "
-                        "layers (no --planner)")
-            return 2
-    elif goal is not None and goal.yaw_rad is not None:
-        _err("run", f"warning: heading {ns.goal[2]:g} deg ignored: the firmware's move-to-goal layer drives to the "
-                    "position only (the host planners, --planner, use the heading)")
-    rec = None
-    if ns.rrd:
-        check_output("--rrd", ns.rrd, (".rrd",))
-        from ..viz import VizUnavailable
-        from ..viz.recorder import require_rerun
-
-        try:
-            require_rerun()
-        except VizUnavailable as e:
-            _err("run", str(e))
-            return 2
-    tlog = _tlog_path(ns, "run", cfg)  # checked writable before the link opens
-    ep = _open(ns, "run", cfg, tlog)
-    if ns.rrd:
-        from ..viz import Recorder
-
-        try:
-            rec = Recorder.to_file(ns.rrd)
-        except (OSError, RuntimeError) as e:
-            ep.close()
-            raise OutputError(f"--rrd {ns.rrd}: cannot write there: {getattr(e, 'strerror', None) or e}") from None
-    if ns.autopilot == "ardupilot":
-        from .ardupilot import ArduRover, ArduRoverConfig
-
-        a = cfg.ardupilot
-        robot: Any = ArduRover(ep, ArduRoverConfig(a.mode, a.steer_channel, a.throttle_channel, a.trim_us,
-                                                   a.half_range_us, a.reverse_steer, math.radians(a.max_steer_deg),
-                                                   a.max_speed_m_s, a.wheelbase_m))
-    else:
-        from .robot import AgnavRobot
-
-        robot = AgnavRobot(ep)
-    t0 = time.monotonic()
-    try:
-        spec = None
-        if ns.autopilot == "ardupilot":
-            from ..planning.base import RobotSpec
-
-            a = cfg.ardupilot
-            spec = RobotSpec(kinematics="ackermann", wheelbase_m=a.wheelbase_m, max_speed_m_s=a.max_speed_m_s,
-                             max_steer_rad=math.radians(a.max_steer_deg), stop_lag_s=0.25)
-            robot.start()
-        else:
-            # The firmware declares link loss after LINK_TIMEOUT_MS (500 ms by default) without a
-            # heartbeat or setpoint: a 1 Hz GCS heartbeat alone would trip it between beats.
-            timeout_ms = robot.param_get("LINK_TIMEOUT_MS")
-            ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(timeout_ms / 1000.0, 0.1))
-            robot.release()
-            robot.arm()
-            robot.set_behaviours(follow_wall=ns.follow_wall, goal_seek=goal is not None and not planner_name,
-                                 avoid=not ns.no_avoid)
-            if planner_name:
-                spec = _robot_spec(robot, cfg)
-            elif goal is not None:
-                fw_goal = _FirmwareGoal(robot, goal.x_m, goal.y_m, robot.param_get("GOAL_TOL_MM") / 1000.0)
-        if planner_name:
-            from ..planning.registry import make_planner
-
-            planner = make_planner(planner_name, spec)
-            planner.reset()
-        if rec is not None and goal is not None:
-            rec.log_goal(goal.x_m, goal.y_m)
-        period = 1.0 / cfg.run.control_hz
-        blind = False
-        next_status = 0.0
-        last_layer = None
-        hdg = f", {ns.goal[2]:g} deg" if goal is not None and goal.yaw_rad is not None and planner_name else ""
-        print(f"running: {'planner ' + planner_name if planner_name else 'firmware layers'}"
-              f"{f', goal ({goal.x_m:g}, {goal.y_m:g}{hdg})' if goal else ''}; Ctrl-C stops the robot", flush=True)
-        while True:
-            loop_t = time.monotonic()
-            t = loop_t - t0
-            if ns.duration is not None and t >= ns.duration:
-                print("duration reached")
-                break
-            st = ep.state
-            if planner is not None and not _pose_fresh(st, time.monotonic()):
-                # The downlink is silent: planning on a stale pose would drive blind. Hold the
-                # robot (stop setpoints also keep the firmware's link alive) until odometry returns.
-                if not blind:
-                    blind = True
-                    _err("run", f"no odometry for > {POSE_STALE_S:.1f} s: holding the robot stopped until telemetry returns")
-                robot.stop()
-                _sleep(period)
-                continue
-            if blind:
-                blind = False
-                print(f"odometry back at t={t:.1f} s: planning again", file=sys.stderr, flush=True)
-            if planner is not None:
-                obs = _observation(st, goal, t)
-                if math.hypot(goal.x_m - obs.pose.x_m, goal.y_m - obs.pose.y_m) <= goal.tolerance_m:
-                    print(f"goal reached at t={t:.1f} s")
-                    break
-                from ..planning.base import PlanningError
-
-                try:
-                    cmd = planner.step(obs)
-                except PlanningError as e:
-                    _err("run", f"planner {planner_name}: {_plain(e)}; stopping")
-                    robot.stop()
-                    return 1
-                v = max(-spec.max_speed_m_s, min(spec.max_speed_m_s, cmd.speed_m_s))
-                if ns.autopilot == "ardupilot":
-                    robot.drive_command(DriveCommand(v, cmd.yaw_rate_rad_s, cmd.steer_rad))
-                else:
-                    from .robot import steer_from_drive_command
-
-                    phi = steer_from_drive_command(DriveCommand(v, cmd.yaw_rate_rad_s, cmd.steer_rad),
-                                                   spec.kinematics, spec.wheelbase_m, spec.track_m, spec.max_steer_rad)
-                    robot.drive(phi, v)
-                if rec is not None and "path" in obs.extras:
-                    rec.log_plan(obs.extras["path"])
-            elif fw_goal is not None and fw_goal.reached(st, time.monotonic()):
-                print(f"goal reached (firmware) at t={t:.1f} s")
-                break
-            if rec is not None:
-                rec.set_time(t)
-                if st.pose is not None:
-                    rec.log_pose(st.pose)
-                if st.sonar is not None:
-                    rec.log_sonar(st.sonar, st.pose)
-                if st.behaviour is not None:
-                    rec.log_behaviour(st.behaviour)
-                    if (st.behaviour.layer, st.behaviour.reason) != last_layer:
-                        last_layer = (st.behaviour.layer, st.behaviour.reason)
-                        rec.log_layer_change(st.behaviour)
-            if t >= next_status:
-                next_status = t + 1.0 / cfg.run.status_hz
-                print(_status_line(ep, t), flush=True)
-            _sleep(max(0.0, period - (time.monotonic() - loop_t)))
-        for _ in range(3):
-            robot.stop()
-            _sleep(0.05)
-        return 0
-    except KeyboardInterrupt:
-        print("\nCtrl-C: stopping the robot", file=sys.stderr)
-        try:
-            robot.stop()
-            robot.estop(True)
-            print("e-stop engaged (the next `agnav run` releases it)", file=sys.stderr)
-        except Exception as e:
-            print(f"e-stop not confirmed ({e}); the firmware stops by itself on link loss", file=sys.stderr)
-        return 130
-    finally:
-        print(_stats_line(ep), file=sys.stderr)
-        ep.close()
-        if rec is not None:
-            try:
-                rec.close()
-                print(f"recording: {ns.rrd} (open with `rerun {ns.rrd}`)", file=sys.stderr)
-            except OSError as e:
-                print(f"agnav run: recording {ns.rrd} not written: {e.strerror or e}", file=sys.stderr)
 
 
 def _stats_line(ep: Any) -> str:
@@ -482,25 +245,6 @@ def _stats_line(ep: Any) -> str:
     return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, {rate} "
             f"(budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
             f"link losses {s.link_losses}, parse errors {s.rx_parse_errors}, lost {s.rx_seq_lost}")
-
-
-subcommand("run", help="drive a robot (or a SIL over tcp:) with the firmware layers or a host planner; Ctrl-C e-stops",
-           args=_LINK_ARGS + [
-               (("--planner",), {"default": None, "help": "host planner (see `agnav planners`; sonar planners only: "
-                                                          "subsumption, follow-path, timed); default: [run] planner, "
-                                                          "else the firmware move-to-goal layer"}),
-               (("--goal",), {"type": parse_goal, "default": None, "metavar": "X,Y[,DEG]",
-                              "help": "goal in the odometry frame, m, m, deg; negatives allowed; the heading is used "
-                                      "by host planners only (default: none)"}),
-               (("--autopilot",), {"choices": ["agnav", "ardupilot"], "default": "agnav",
-                                   "help": "agnav firmware (default) or a stock ArduPilot Rover"}),
-               (("--duration",), {"type": positive_float, "default": None,
-                                  "help": "stop after this many seconds, > 0 (default: until the goal or Ctrl-C)"}),
-               (("--follow-wall",), {"action": "store_true", "help": "enable the firmware follow-wall layer"}),
-               (("--no-avoid",), {"action": "store_true", "help": "disable passive obstacle avoidance (careful)"}),
-               (("--rrd",), {"default": None, "help": "save a rerun recording here, FILE.rrd (open with `rerun FILE`; "
-                                                      "default: none)"}),
-           ])(lambda ns: _guard("run", _cmd_run, ns))
 
 
 # ---- calibrate -----------------------------------------------------------------------------------

@@ -17,15 +17,16 @@ import json
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["HostConfig", "LinkConfig", "RunConfig", "CalibrationConfig", "ArduPilotConfig", "VizConfig",
+__all__ = ["HostConfig", "LinkConfig", "RunConfig", "CalibrationConfig", "ArduPilotConfig", "VizConfig", "RobotConfig",
+           "FieldConfig", "LaserConfig",
            "ConfigError", "load_config", "default_config_path", "config_template", "to_toml", "validate_config",
            "SECTIONS", "RULES"]
 
-SECTIONS = ("link", "run", "calibration", "ardupilot", "viz")
+SECTIONS = ("link", "run", "robot", "field", "laser", "tilted_laser", "calibration", "ardupilot", "viz")
 
 
 class ConfigError(ValueError):
@@ -61,6 +62,48 @@ class RunConfig:
     max_speed_m_s: float = 0.6         # clamp on planner speed, m/s
     status_hz: float = 2.0             # status line rate, Hz
     goal_tolerance_m: float = 0.3      # goal reached radius for host planners, m
+    start_x_m: float = 0.0             # the robot's start pose in the frame goals are given in, m
+    start_y_m: float = 0.0
+    start_yaw_deg: float = 0.0         # deg, counter-clockwise from +x
+    landmarks_file: str = ""           # surveyed marker posts (CSV x_m,y_m,radius_m) to localise on; "" = odometry
+
+
+@dataclass
+class RobotConfig:
+    """The host's view of the robot for planners; kinematics, wheelbase, track and top speed come from the
+    firmware's parameters (DRIVE_KIND, WHEELBASE_MM, TRACK_MM, MAX_SPEED_MM_S)."""
+
+    radius_m: float = 0.225            # footprint disc radius, m
+    max_steer_deg: float = 0.0         # steering limit planners use, deg; 0 = the firmware's MAX_STEER_CDEG
+    min_speed_m_s: float = 0.0         # slowest speed the drive holds (an RC car's dead band), m/s
+    max_accel_m_s2: float = 1.0        # acceleration limit, m/s^2
+    max_yaw_rate_rad_s: float = 1.2    # differential drive: turn-rate limit, rad/s
+    footprint_offset_m: float = -1.0   # footprint centre ahead of the reference point, m; < 0 = half the wheelbase
+                                       # for a car, 0 for a differential drive
+    stop_lag_s: float = 0.0            # the drive's speed time constant, s; 0 = 0.25 s car, 0.12 s differential
+
+
+@dataclass
+class FieldConfig:
+    """The field the field controllers work in (row-follower, row-navigator, proximity, rut-follower)."""
+
+    row_side: str = "right"            # the robot's side of the row it follows (proximity): left or right
+    row_offset_m: float = 1.0          # distance kept from the row (proximity), m
+    row_half_width_m: float = 0.0      # row centre line to the face the laser sees, m
+    row_method: str = "ransac"         # row detection: ransac, lsq, offset, triangle, hough
+    turns: str = "left,1"              # headland turn pattern SIDE[,N]: first turn side, lanes per turn
+
+
+@dataclass
+class LaserConfig:
+    """One laser scanner: its URL (see `agnav run --help`) and where it sits on the robot."""
+
+    url: str = ""                      # e.g. tim5xx://192.168.0.1, ust://192.168.0.10, urg:/dev/ttyACM0; "" = none
+    x_m: float = 0.0                   # position on the robot (x forward, y left), m
+    y_m: float = 0.0
+    yaw_deg: float = 0.0               # deg, counter-clockwise
+    pitch_deg: float = 0.0             # pitched down from horizontal, deg (the tilted scanner: > 0)
+    height_m: float = 0.0              # above the ground, m (the tilted scanner: > 0)
 
 
 @dataclass
@@ -105,11 +148,15 @@ class VizConfig:
 
 @dataclass
 class HostConfig:
-    link: LinkConfig = field(default_factory=LinkConfig)
-    run: RunConfig = field(default_factory=RunConfig)
-    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
-    ardupilot: ArduPilotConfig = field(default_factory=ArduPilotConfig)
-    viz: VizConfig = field(default_factory=VizConfig)
+    link: LinkConfig = dataclasses.field(default_factory=LinkConfig)
+    run: RunConfig = dataclasses.field(default_factory=RunConfig)
+    robot: RobotConfig = dataclasses.field(default_factory=RobotConfig)
+    field: FieldConfig = dataclasses.field(default_factory=FieldConfig)
+    laser: LaserConfig = dataclasses.field(default_factory=LaserConfig)
+    tilted_laser: LaserConfig = dataclasses.field(default_factory=LaserConfig)
+    calibration: CalibrationConfig = dataclasses.field(default_factory=CalibrationConfig)
+    ardupilot: ArduPilotConfig = dataclasses.field(default_factory=ArduPilotConfig)
+    viz: VizConfig = dataclasses.field(default_factory=VizConfig)
     source: str = ""                   # file it came from ("" = defaults)
 
 
@@ -189,6 +236,35 @@ def _planner(v: Any) -> str | None:
     return None
 
 
+def _finite(v: Any) -> str | None:
+    return None if math.isfinite(v) else f"must be a finite number, got {v!r}"
+
+
+def _laser_url(v: Any) -> str | None:
+    if not v:
+        return None
+    from ..lasers import LaserUrlError, parse_laser_url
+
+    try:
+        parse_laser_url(v)
+    except LaserUrlError as e:
+        return str(e).replace("--laser ", "", 1)
+    return None
+
+
+def _turns(v: Any) -> str | None:
+    from ..planning.registry import parse_turn_pattern
+
+    try:
+        parse_turn_pattern(v)
+    except ValueError as e:
+        return str(e)
+    return None
+
+
+_LASER_RULES: dict[str, Check] = {"url": _laser_url, "x_m": _finite, "y_m": _finite, "yaw_deg": _finite,
+                                  "pitch_deg": lambda v: None if math.isfinite(v) and 0 <= v < 90 else
+                                  f"must be 0 (horizontal) .. < 90 deg, got {v!r}", "height_m": _nonneg}
 _PWM = _between(0, 255, " (table PWM units, one byte)")
 _MAVLINK_ID = _between(1, 255, " (a MAVLink id)")
 
@@ -204,7 +280,20 @@ RULES: dict[str, dict[str, Check]] = {
         "control_hz": lambda v: None if math.isfinite(v) and v >= 5.0 else
         f"must be >= 5 (the firmware's link timeout is 500 ms), got {v!r}",
         "planner": _planner, "max_speed_m_s": _positive, "status_hz": _positive, "goal_tolerance_m": _positive,
+        "start_x_m": _finite, "start_y_m": _finite, "start_yaw_deg": _finite,
     },
+    "robot": {
+        "radius_m": _positive, "max_steer_deg": lambda v: None if math.isfinite(v) and 0 <= v < 90 else
+        f"must be 0 (the firmware's) .. < 90 deg, got {v!r}", "min_speed_m_s": _nonneg, "max_accel_m_s2": _positive,
+        "max_yaw_rate_rad_s": _positive, "footprint_offset_m": _finite, "stop_lag_s": _nonneg,
+    },
+    "field": {
+        "row_side": _one_of("left", "right"), "row_offset_m": lambda v: None if math.isfinite(v) and v >= 0.05 else
+        f"must be >= 0.05 m, got {v!r}", "row_half_width_m": _nonneg,
+        "row_method": _one_of("offset", "lsq", "triangle", "ransac", "hough"), "turns": _turns,
+    },
+    "laser": _LASER_RULES,
+    "tilted_laser": _LASER_RULES,
     "calibration": {
         "steer_pwm_min": _PWM, "steer_pwm_max": _PWM, "steer_neutral_pwm": _PWM, "steer_step": _between(1, 255),
         "steer_speed_pwm": _PWM, "speed_pwm_min": _PWM, "speed_pwm_max": _PWM, "speed_step": _between(1, 255),
@@ -244,6 +333,10 @@ def validate_config(cfg: HostConfig) -> None:
     if not c.steer_pwm_min <= c.steer_neutral_pwm <= c.steer_pwm_max:
         raise ConfigError(f"[calibration] steer_neutral_pwm: must lie in steer_pwm_min..steer_pwm_max "
                           f"({c.steer_pwm_min}..{c.steer_pwm_max}), got {c.steer_neutral_pwm}", ("calibration", "steer_neutral_pwm"))
+    tl = cfg.tilted_laser
+    if tl.url and not (tl.pitch_deg > 0 and tl.height_m > 0):
+        raise ConfigError("[tilted_laser] pitch_deg: the tilted scanner needs its pitch (> 0 deg) and height_m (> 0 m)",
+                          ("tilted_laser", "pitch_deg"))
     a = cfg.ardupilot
     if a.steer_channel == a.throttle_channel:
         raise ConfigError(f"[ardupilot] throttle_channel: must differ from steer_channel ({a.steer_channel})",

@@ -9,7 +9,6 @@ seed, so the same seed gives byte-identical outputs.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -21,7 +20,7 @@ from ..types import DriveCommand, Goal, SonarFrame
 
 if TYPE_CHECKING:
     from ..planning.base import RobotSpec
-from .controller import STANDINS, Controller, GoalSeekParams, make_standin
+from .controller import Controller, GoalSeekParams
 from .metrics import RowDistance, RunMetrics
 from .referee import HOLE_FALL_DEPTH_M, Referee
 from .robots import AckermannParams

@@ -74,6 +74,19 @@ class Recorder:
         return r
 
     @classmethod
+    def streaming_to(cls, path: str | Path, app_id: str = "agnav") -> "Recorder":
+        """A recording streamed to ``path`` by rerun's file sink as it is logged (a robot run of hours is not
+        held in memory). The folder is checked writable first; a disk that fills during the run ends the
+        recording where it filled (rerun reports it on stderr), the run goes on."""
+        rr = require_rerun()
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.open("wb").close()  # fail now, not during the run, when the folder cannot be written
+        rec = rr.RecordingStream(app_id)
+        rec.save(str(p))
+        return cls(rec, rr, None)
+
+    @classmethod
     def spawn(cls, app_id: str = "agnav") -> "Recorder":
         """Live viewer (spawns ``rerun``); nothing is saved (use :meth:`to_file` for a recording)."""
         rr = require_rerun()

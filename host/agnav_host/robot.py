@@ -1,0 +1,393 @@
+"""A robot run: the host loop (:mod:`agnav_host.hostloop`) on the wall clock, against the robot's link and its
+laser scanners. ``agnav run`` is a thin command over :class:`RobotRun`.
+
+Sources: the firmware's odometry (AGNAV_ODOMETRY over the link, composed with the start pose), its sonar ring,
+the horizontal laser and the tilted one (:mod:`agnav_host.lasers`: real scanners, the SIL's emulators, replayed
+logs). With a horizontal laser the loop steps on each of its scans, at once (the scan's latency to the command
+is measured); without one, or while it is silent, it steps at ``control_hz`` so that the watchdog sees the gap
+and the firmware keeps getting setpoints. The command goes out as the firmware's setpoint
+(:func:`~agnav_host.hostloop.firmware_setpoint`), or to a stock ArduPilot Rover.
+
+Clock: every time in a run is seconds since :meth:`RobotRun.run` started (``t0_monotonic_s`` on
+``time.monotonic()``); laser stamps are moved onto it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .hostloop import Decision, HostLoop, OdometryReport, SensorFrame, firmware_setpoint
+from .lasers import LaserInfo, LaserMount, LaserSource
+from .link.state import PoseState
+from .planning.base import RobotSpec
+from .types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
+
+__all__ = ["RobotRun", "RunSettings", "RobotOutcome", "LaserFeed", "RunOutputs", "POSE_STALE_S", "TRAJECTORY_COLUMNS",
+           "latency_summary"]
+
+#: A host controller steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
+#: missed) and it would drive blind, so the robot is held stopped instead.
+POSE_STALE_S = 0.5
+TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
+
+
+@dataclass
+class LaserFeed:
+    """A started laser source in a run: its role (``laser`` or ``tilted_laser``), mounting pose and device info."""
+
+    source: LaserSource
+    mount: LaserMount
+    info: LaserInfo
+    role: str = "laser"
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What a robot run needs besides its link and lasers (SI units, times in s since the run started)."""
+
+    goals: tuple[Goal, ...]
+    spec: RobotSpec
+    start: Pose2D = Pose2D()
+    control_hz: float = 10.0
+    duration_s: float | None = None
+    firmware_max_steer_rad: float = math.radians(45.0)
+    status_hz: float = 2.0
+
+
+@dataclass
+class RobotOutcome:
+    """How a run ended (``arrived``, ``duration``, ``interrupted``, ``planning_error``) and what it measured."""
+
+    reason: str
+    t_s: float
+    message: str = ""
+    latency_s: list[float] = field(default_factory=list)  # per scan: command sent - scan stamp
+    steps: int = 0
+    scans: int = 0
+    holds: int = 0
+
+
+def latency_summary(latency_s: list[float]) -> dict[str, float | int | None]:
+    """Median, 99th percentile and maximum of the laser-to-command latencies, ms."""
+    if not latency_s:
+        return {"scans": 0, "median_ms": None, "p99_ms": None, "max_ms": None}
+    a = np.asarray(latency_s) * 1e3
+    return {"scans": int(len(a)), "median_ms": round(float(np.median(a)), 3),
+            "p99_ms": round(float(np.percentile(a, 99)), 3), "max_ms": round(float(a.max()), 3)}
+
+
+class RunOutputs:
+    """The ``--out`` folder of a robot run, written as the run goes: ``trajectory.csv`` (the planned pose,
+    appended every step), ``laser.alog`` (every scan of every laser, :mod:`agnav_host.lasers.log`),
+    ``recording.rrd`` (rerun, streamed to disk) and, at the end, ``summary.json`` (the keys of ``agnav sim``),
+    ``run_info.json`` and ``trajectory.png``."""
+
+    def __init__(self, out: str | Path | None, rrd: str | Path | None = None) -> None:
+        from .lasers.log import LaserLogWriter
+
+        self.dir = Path(out) if out is not None else None
+        self.rows: list[tuple[float, ...]] = []
+        self._traj: Any = None
+        self.log: Any = None
+        if self.dir is not None:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            self._traj = open(self.dir / "trajectory.csv", "w", encoding="utf-8")
+            self._traj.write(",".join(TRAJECTORY_COLUMNS) + "\n")
+            self.log = LaserLogWriter(self.dir / "laser.alog")
+        self._declared: set[int] = set()
+        self.rec: Any = None
+        self.rrd = Path(rrd) if rrd is not None else None
+        if self.rrd is not None:
+            from .viz.recorder import Recorder
+
+            self.rec = Recorder.streaming_to(self.rrd)
+
+    def scan(self, laser_id: int, feed: LaserFeed, scan: LaserScan, t_s: float, pose: Pose2D | None) -> None:
+        if self.log is not None and laser_id not in self._declared:
+            self.log.declare(laser_id, feed.source.url, feed.info.kind, feed.info.model, feed.mount, scan,
+                             feed.info.stamps, feed.info.latency_s)
+            self._declared.add(laser_id)
+        if self.log is not None:
+            self.log.write(laser_id, scan, t_s, pose)
+        if self.rec is not None and laser_id == 0 and scan.pose is not None:
+            self.rec.set_time(t_s)
+            self.rec.log_scan(_world_points(scan))
+
+    def step(self, t_s: float, pose: Pose2D, speed: float, yaw_rate: float, clearance: float, goal_index: int,
+             state: Any) -> None:
+        row = (t_s, pose.x_m, pose.y_m, pose.yaw_rad, speed, yaw_rate, clearance, float(goal_index))
+        self.rows.append(row)
+        if self._traj is not None:
+            self._traj.write(f"{row[0]:.3f},{row[1]:.6f},{row[2]:.6f},{row[3]:.6f},{row[4]:.6f},{row[5]:.6f},"
+                         f"{row[6]:.6f},{goal_index}\n")
+        if self.rec is not None:
+            self.rec.set_time(t_s)
+            self.rec.log_pose(PoseState(t_s, pose.x_m, pose.y_m, pose.yaw_rad, speed, yaw_rate, t_s))
+            if state is not None and state.sonar is not None and state.pose is not None:
+                self.rec.log_sonar(state.sonar, state.pose)
+            if state is not None and state.behaviour is not None:
+                self.rec.log_behaviour(state.behaviour)
+
+    def text(self, t_s: float, text: str, level: str = "INFO") -> None:
+        if self.rec is not None:
+            self.rec.set_time(t_s)
+            self.rec.log_text(text, level)
+
+    def finish(self, settings: RunSettings, outcome: RobotOutcome, info: dict[str, Any], plot: bool = True) -> list[Path]:
+        from .sim.metrics import RunMetrics
+
+        written: list[Path] = []
+        if self.rec is not None:
+            self.rec.close()
+            assert self.rrd is not None
+            written.append(self.rrd)
+        if self.dir is None:
+            return written
+        self._traj.close()
+        self.log.close()
+        written += [self.dir / "trajectory.csv", self.dir / "laser.alog"]
+        rows = np.array(self.rows, dtype=float) if self.rows else np.zeros((1, len(TRAJECTORY_COLUMNS)))
+        last = settings.goals[-1]
+        arrived = outcome.reason == "arrived"
+        m = RunMetrics.compute(rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6],
+                               (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, arrived,
+                               outcome.t_s if arrived else None)
+        (self.dir / "summary.json").write_text(json.dumps(m.to_dict(), indent=2) + "\n", encoding="utf-8")
+        (self.dir / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+        written += [self.dir / "summary.json", self.dir / "run_info.json"]
+        if plot and len(self.rows) > 1:
+            png = _plot_run(rows, settings, self.dir / "trajectory.png", outcome.reason)
+            if png is not None:
+                written.append(png)
+        return written
+
+    def abandon(self) -> None:
+        """Close what is open after a failure (the files keep what was written)."""
+        for c in (self._traj, self.log):
+            try:
+                if c is not None:
+                    c.close()
+            except Exception:
+                pass
+        if self.rec is not None:
+            try:
+                self.rec.close()
+            except Exception:
+                pass
+
+
+def _world_points(scan: LaserScan) -> np.ndarray:
+    assert scan.pose is not None
+    xy = scan.xy()
+    c, s = math.cos(scan.pose.yaw_rad), math.sin(scan.pose.yaw_rad)
+    return np.column_stack((scan.pose.x_m + c * xy[:, 0] - s * xy[:, 1], scan.pose.y_m + s * xy[:, 0] + c * xy[:, 1]))
+
+
+def _plot_run(rows: np.ndarray, settings: RunSettings, path: Path, reason: str) -> Path | None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    fig, ax = plt.subplots(figsize=(6, 6))
+    ax.plot(rows[:, 1], rows[:, 2], "b-", lw=1, label="planned pose (odometry / localiser)")
+    ax.plot([settings.start.x_m], [settings.start.y_m], "ko", label="start")
+    for i, g in enumerate(settings.goals):
+        ax.add_patch(plt.Circle((g.x_m, g.y_m), g.tolerance_m, color="g", alpha=0.3))
+        ax.plot([g.x_m], [g.y_m], "g*", ms=10, label="goal" if i == 0 else None)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x, m")
+    ax.set_ylabel("y, m")
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(f"agnav run ({reason})")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _sonar_frame(state: Any, t_s: float) -> SonarFrame | None:
+    if state.sonar is None:
+        return None
+    s = state.sonar
+    st = np.array(s.status)
+    r = np.array(s.ranges_m, dtype=float)
+    r[st != 0] = np.nan  # no echo, fault and stale carry no obstacle range
+    return SonarFrame(stamp_s=t_s, fired=st != 3, echo_us=2.0 * r / 343.0 * 1e6, ranges_m=r)
+
+
+def _on_run_clock(scan: LaserScan, t0: float) -> LaserScan:
+    return LaserScan(scan.angle_min_rad, scan.angle_increment_rad, scan.ranges_m, scan.range_max_m, scan.stamp_s - t0)
+
+
+class RobotRun:
+    """The host loop against a robot (see the module docstring).
+
+    ``robot``: an :class:`~agnav_host.link.robot.AgnavRobot` (its ``state`` is the endpoint's telemetry) or an
+    ArduPilot Rover adapter (``ardupilot=True``: DriveCommands instead of firmware setpoints); ``say``: where
+    messages for the operator go (a laser fault, odometry lost and back); ``status``: called at ``status_hz``
+    with the run time."""
+
+    def __init__(self, robot: Any, loop: HostLoop, settings: RunSettings, lasers: list[LaserFeed] | None = None,
+                 outputs: RunOutputs | None = None, ardupilot: bool = False,
+                 say: Callable[[str], None] = lambda m: None, status: Callable[[float], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> None:
+        self.robot = robot
+        self.loop = loop
+        self.settings = settings
+        feeds = lasers or []
+        self.laser = next((f for f in feeds if f.role == "laser"), None)
+        self.tilted = next((f for f in feeds if f.role == "tilted_laser"), None)
+        self.outputs = outputs
+        self.ardupilot = ardupilot
+        self.say = say
+        self.status = status
+        self.clock = clock
+        self.sleep = sleep
+        self.t0 = clock()
+        self._odo_stamp: float | None = None
+        self._blind = False
+        self._hold = ""
+
+    # ---- sources ---------------------------------------------------------------------------------------
+    def _pose(self, st: Any, now: float) -> tuple[Pose2D | None, OdometryReport | None]:
+        p = st.pose
+        if p is None or now - p.rx_time_s > POSE_STALE_S:
+            return None, None
+        report = None
+        if p.time_boot_s != self._odo_stamp:
+            self._odo_stamp = p.time_boot_s
+            report = OdometryReport(p.x_m, p.y_m, p.yaw_rad, p.time_boot_s, p.speed_m_s, p.yaw_rate_rad_s)
+        return self.settings.start.compose(Pose2D(p.x_m, p.y_m, p.yaw_rad)), report
+
+    def _wait_scan(self, period: float) -> LaserScan | None:
+        if self.laser is None:
+            self.sleep(period)
+            return None
+        return self.laser.source.wait(period)
+
+    # ---- the command -------------------------------------------------------------------------------------
+    def _send(self, cmd: DriveCommand) -> None:
+        sp = self.settings.spec
+        if self.ardupilot:
+            v = max(-sp.max_speed_m_s, min(sp.max_speed_m_s, cmd.speed_m_s))
+            self.robot.drive_command(DriveCommand(v, cmd.yaw_rate_rad_s, cmd.steer_rad))
+            return
+        steer, v = firmware_setpoint(cmd, sp.kinematics, sp.track_m, sp.wheelbase_m, self.settings.firmware_max_steer_rad,
+                                     sp.max_speed_m_s)
+        self.robot.drive(steer, v)
+
+    def _clearance(self, scan: LaserScan | None) -> float:
+        if scan is None:
+            return math.nan
+        xy = scan.xy()
+        if not len(xy):
+            return math.nan
+        m = self.laser.mount if self.laser is not None else LaserMount()
+        c, s = math.cos(m.yaw_rad), math.sin(m.yaw_rad)  # the returns in the robot frame: nearest to its centre
+        x = m.x_m + c * xy[:, 0] - s * xy[:, 1]
+        y = m.y_m + s * xy[:, 0] + c * xy[:, 1]
+        return float(np.min(np.hypot(x, y))) - self.settings.spec.radius_m
+
+    # ---- the run -----------------------------------------------------------------------------------------------
+    def run(self) -> RobotOutcome:
+        """Drive until the last goal is reached, ``duration_s`` is up, a planning error, or Ctrl-C
+        (KeyboardInterrupt propagates after the robot was told to stop: the caller e-stops)."""
+        from .planning.base import PlanningError
+
+        s = self.settings
+        period = 1.0 / s.control_hz
+        self.t0 = self.clock()
+        out = RobotOutcome("duration", 0.0)
+        next_status = 0.0
+        last_scan: LaserScan | None = None
+        while True:
+            raw = self._wait_scan(period)
+            now = self.clock()
+            t = now - self.t0
+            if s.duration_s is not None and t >= s.duration_s:
+                out.reason, out.t_s = "duration", t
+                break
+            st = self.robot.state
+            pose, report = self._pose(st, now)
+            scan = _on_run_clock(raw, self.t0) if raw is not None else None
+            tilted_raw = self.tilted.source.latest() if self.tilted is not None else None
+            tilted = _on_run_clock(tilted_raw, self.t0) if tilted_raw is not None else None
+            frame = SensorFrame(t, pose, st.pose.speed_m_s if pose is not None else 0.0,
+                                st.pose.yaw_rate_rad_s if pose is not None else 0.0, odometry=report, scan=scan,
+                                tilted_scan=tilted, sonar=_sonar_frame(st, t))
+            try:
+                d = self.loop.step(frame)
+            except PlanningError as e:
+                self.robot.stop()
+                out.reason, out.t_s, out.message = "planning_error", t, str(e)
+                break
+            out.steps += 1
+            self._act(d, t)
+            if scan is not None:
+                out.scans += 1
+                if d.command is not None and not d.hold and not d.arrived:
+                    out.latency_s.append(self.clock() - self.t0 - scan.stamp_s)
+                last_scan = d.observation.scan if d.observation is not None and d.observation.scan is not None else last_scan
+            if d.hold:
+                out.holds += 1
+            self._record(d, t, st, scan, tilted, last_scan)
+            if d.arrived:
+                out.reason, out.t_s, out.message = "arrived", t, d.event
+                break
+            if self.status is not None and t >= next_status:
+                next_status = t + 1.0 / s.status_hz
+                self.status(t)
+        for _ in range(3):
+            self.robot.stop()
+            self.sleep(0.05)
+        return out
+
+    def _act(self, d: Decision, t: float) -> None:
+        if d.event:
+            self.say(d.event)
+            if self.outputs is not None:
+                self.outputs.text(t, d.event, "WARN" if d.hold else "INFO")
+        if d.command is None:  # no odometry: hold the robot (stop setpoints also keep the firmware's link alive)
+            if not self._blind:
+                self._blind = True
+                self.say(f"no odometry for > {POSE_STALE_S:.1f} s: holding the robot stopped until telemetry returns")
+            self.robot.stop()
+            return
+        if self._blind:
+            self._blind = False
+            self.say(f"odometry back at t={t:.1f} s: planning again")
+        if d.hold or d.arrived:
+            if d.hold and d.hold != self._hold and not d.event:
+                self.say(f"holding the robot: {d.hold}")
+            self._hold = d.hold
+            self.robot.stop()
+            return
+        if self._hold:
+            self.say(f"t={t:.1f} s: {self._hold.split(':')[0]} cleared, driving again")
+            self._hold = ""
+        self._send(d.command)
+
+    def _record(self, d: Decision, t: float, st: Any, scan: LaserScan | None, tilted: LaserScan | None,
+                last_scan: LaserScan | None) -> None:
+        o = self.outputs
+        if o is None:
+            return
+        pose = d.pose
+        if scan is not None and self.laser is not None:
+            placed = d.observation.scan if d.observation is not None and d.observation.scan is not None else scan
+            o.scan(0, self.laser, placed, scan.stamp_s, pose)
+        if tilted is not None and self.tilted is not None:
+            o.scan(1, self.tilted, tilted, tilted.stamp_s, pose)
+        if pose is not None:
+            speed = st.pose.speed_m_s if st.pose is not None else 0.0
+            yr = st.pose.yaw_rate_rad_s if st.pose is not None else 0.0
+            o.step(t, pose, speed, yr, self._clearance(last_scan), self.loop.goal_index, st)
