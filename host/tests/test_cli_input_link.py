@@ -307,9 +307,8 @@ def test_goal_heading_without_planner_is_warned_about(capsys):
 def test_laser_planner_refused_before_connecting(capsys):
     assert cli.main(["run", "--device", nowhere(), "--planner", "him", "--goal", "1,1", "--no-tlog"]) == 2
     err = capsys.readouterr().err
-    assert "planner him needs a laser; this run has none" in err
+    assert "planner him needs a laser; this run has none: give one with --laser URL" in err
     assert "obs.scan" not in err and "could not open" not in err
-    assert commands.planner_needs_laser("vfh") and not commands.planner_needs_laser("subsumption")
 
 
 def test_planner_errors_lose_internal_names():
@@ -390,8 +389,9 @@ def test_finite_config_values_still_load(tmp_path):
     assert os.path.samefile(cfg.source, p)
 
 
-def test_run_refuses_a_simulator_only_field_controller_by_name(capsys):
-    for name in ("proximity", "row-follower", "goal_seek+ground-guard"):
+def test_run_asks_a_field_controller_for_the_lasers_it_needs(capsys):
+    for name, what in (("proximity", "needs a laser"), ("row-follower", "needs a laser"),
+                       ("goal_seek+ground-guard", "needs a laser"), ("rut-follower", "needs a tilted laser")):
         assert cli.main(["run", "--device", nowhere(), "--planner", name, "--goal", "1,0", "--no-tlog"]) == 2
         err = capsys.readouterr().err
-        assert f"{name} is a field controller" in err and "`agnav sim` only" in err, err
+        assert f"{name} {what}" in err and "--laser" in err and "could not open" not in err, err

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from agnav_host import cli
-from agnav_host.link import commands
+from agnav_host.link import commands, run_command
 from agnav_host.link.config import ConfigError, config_template, load_config
 from agnav_host.link.fake import FakeRobot
 
@@ -29,7 +29,7 @@ def test_negative_goal_is_a_value():
     p = cli.build_parser()
     ns = p.parse_args(cli._join_negative_values(["run", "--device", "tcp:127.0.0.1:1", "--goal", "-3,-5,-90"],
                                                 cli._value_options(p)))
-    assert ns.goal == (-3.0, -5.0, -90.0)
+    assert ns.goal == [(-3.0, -5.0, -90.0)]  # --goal repeats for waypoints
 
 
 def test_flash_dry_run_wraps_pio(capsys, monkeypatch):
@@ -120,7 +120,7 @@ def test_run_ctrl_c_engages_estop(monkeypatch, tmp_path):
         real_sleep(s)
 
     with FakeRobot() as fr:
-        monkeypatch.setattr(commands, "_sleep", sleepy)
+        monkeypatch.setattr(run_command, "_sleep", sleepy)
         rc = cli.main(["run", "--device", fr.device, "--planner", "subsumption", "--goal", "3,0", "--no-tlog"])
         assert rc == 130
         assert fr.estop

@@ -54,10 +54,18 @@ stated latency ``latency_s``: the time one 5-byte sample takes on the wire (50 b
 0.43 ms at 115200) plus 1 ms assumed for the USB-serial adapter's buffering. ``?latency_ms=`` states
 another figure.
 
+Connecting. The port is opened with DTR deasserted (the A1/A2 motor spins up while the driver asks),
+then STOP, a 50 ms pause and a flush of what was in flight, GET_HEALTH (error -> LaserError: RESET or
+power-cycle it), GET_INFO, GET_SAMPLERATE (firmware >= 1.17; optional), SET_MOTOR_PWM for an A2 (``?pwm=``
+sets the duty for any model), SCAN and its descriptor. An answer that does not begin ``A5 5A`` is a
+WrongDeviceError naming what came back; no answer at all is a LaserAddressError. :meth:`close` sends STOP
+(and PWM 0 to an A2), asserts DTR and clears HUPCL so that DTR stays asserted and the motor stays off.
+
 Reconnects. A USB serial port that is unplugged makes reads raise ``SerialException`` (an ``OSError``);
 :class:`~agnav_host.lasers.base.ThreadedLaser` then reopens the path until it answers again. A stream that
-goes silent for ``stall_s`` (2 s, ``?stall_s=``) while scanning counts as lost too, so a device that
-stopped (a protection stop ends the scanning state) is asked for its health again.
+goes silent for ``stall_s`` (2 s, ``?stall_s=``; 3 s more after SCAN for the motor to settle) while scanning
+counts as lost too, so a device that stopped (a protection stop ends the scanning state) is asked for its
+health again.
 """
 
 from __future__ import annotations
@@ -68,6 +76,7 @@ import struct
 import time
 from collections import deque
 from dataclasses import dataclass
+
 import numpy as np
 
 from .base import (
@@ -572,6 +581,7 @@ def describe_bytes(data: bytes) -> str:
 
 # ---- the driver --------------------------------------------------------------------------------------------
 _OPTIONS = ("baud", "beams", "pwm", "range_min", "range_max", "latency_ms", "stall_s")
+_MOUNT_KEYS = ("x", "y", "yaw", "pitch", "height")  # the mount, read by ``agnav run`` from the same URL
 
 
 class RplidarScanner(ThreadedLaser):
@@ -583,12 +593,13 @@ class RplidarScanner(ThreadedLaser):
     answer_timeout_s = 1.0  # for each single answer while connecting
     samplerate_timeout_s = 0.3  # GET_SAMPLERATE is optional (firmware >= 1.17)
     min_samples = 5
+    spinup_s = 3.0  # after SCAN, the wait for the first samples allowed on top of stall_s
 
     def __init__(self, url, mount: LaserMount | None = None) -> None:  # url: LaserUrl
         super().__init__(url.text, mount)
         from . import LaserUrlError  # the package is loaded by the time a driver is built
 
-        unknown = [k for k, _ in url.options if k not in _OPTIONS]
+        unknown = [k for k, _ in url.options if k not in _OPTIONS and k not in _MOUNT_KEYS]
         if unknown:
             raise LaserUrlError(f"--laser {url.text!r}: unknown option {unknown[0]!r}; rplidar takes "
                                 f"{', '.join(_OPTIONS)}")
@@ -660,15 +671,14 @@ class RplidarScanner(ThreadedLaser):
     def _identify_and_scan(self, ser, timeout_s: float) -> LaserInfo:
         answer_s = min(self.answer_timeout_s, max(timeout_s, 0.2))
         self._quiet(ser)
-        for attempt in (0, 1):
-            try:
-                health = parse_health(self._ask(ser, CMD_GET_HEALTH, DESCRIPTOR_HEALTH, answer_s))
-                break
-            except WrongDeviceError as e:
-                if attempt or "boot text" not in str(e):
-                    raise
-                time.sleep(0.1)  # it has just rebooted: let the text end, then ask again
-                self._quiet(ser)
+        try:
+            health = parse_health(self._ask(ser, CMD_GET_HEALTH, DESCRIPTOR_HEALTH, answer_s))
+        except WrongDeviceError as e:
+            if "boot text" not in str(e):
+                raise
+            time.sleep(0.1)  # it has just rebooted: let the text end, then ask again
+            self._quiet(ser)
+            health = parse_health(self._ask(ser, CMD_GET_HEALTH, DESCRIPTOR_HEALTH, answer_s))
         self.health = health
         if health.status == 2:
             raise LaserError(f"{self.path}: the RPLIDAR reports health error (protection stop), error code "
@@ -699,7 +709,7 @@ class RplidarScanner(ThreadedLaser):
         expect_descriptor(self._read_exact(ser, DESCRIPTOR_LEN, answer_s, "SCAN", True), DESCRIPTOR_SCAN,
                           "SCAN")
         ser.timeout = 0.1
-        self._last_data = time.monotonic()
+        self._last_data = time.monotonic() + self.spinup_s  # samples flow once the motor runs steadily
         return LaserInfo(kind=self.kind, address=self.path, model=info.describe(), serial=info.serial_hex,
                          stamps="arrival", latency_s=self.latency_s, scan_hz=0.0)
 
@@ -760,6 +770,11 @@ class RplidarScanner(ThreadedLaser):
             pass
         try:
             ser.dtr = True  # motor off on the USB adapter (a port without modem lines refuses: no matter)
+            import termios  # keep DTR asserted after close: HUPCL would drop it, and the motor would spin on
+
+            attrs = termios.tcgetattr(ser.fd)
+            attrs[2] &= ~termios.HUPCL
+            termios.tcsetattr(ser.fd, termios.TCSANOW, attrs)
         except Exception:
             pass
         try:
@@ -789,14 +804,14 @@ class RplidarScanner(ThreadedLaser):
             chunk += ser.read(waiting)
             now = time.monotonic()
         self._last_data = now
-        resyncs, skipped = self._stream.resyncs, self._stream.skipped
+        resyncs = self._stream.resyncs
         block = self._stream.feed(chunk)
         for rev in self._revs.push(block, now):
             self._ready.append(self._to_scan(rev))
-        if self._stream.resyncs != resyncs or self._stream.skipped != skipped:
-            self._problem = (f"{self.path}: garbage between RPLIDAR samples ({self._stream.skipped - skipped} bytes "
-                             f"dropped so far in this loss, {self._stream.resyncs} losses in all); the 5-byte "
-                             "alignment is recovered at the next samples that pass the check bits")
+        if self._stream.resyncs != resyncs:  # one TelegramError for each loss of the alignment
+            self._problem = (f"{self.path}: garbage between RPLIDAR samples: a sample broke the check bits "
+                             f"({self._stream.resyncs} losses, {self._stream.skipped} bytes dropped so far); the "
+                             "5-byte alignment is taken up again at the next samples that pass them")
         if self._ready:
             return self._ready.popleft()
         return None

@@ -92,6 +92,14 @@ def laser_feeds_from(urls: list[str], cfg: Any) -> list[tuple[Any, Any, str]]:
     return out
 
 
+_MOUNT_KEYS = ("x", "y", "yaw", "pitch", "height")
+
+
+def _without_mount(url: Any) -> Any:
+    """The URL a driver gets: the mounting-pose keys are the run's, not the device's."""
+    return replace(url, options=tuple((k, v) for k, v in url.options if k not in _MOUNT_KEYS))
+
+
 def field_from(ns: argparse.Namespace, cfg: Any) -> Any:
     """The field description: the options over the config's ``[field]``."""
     from ..planning.registry import FieldDescription, parse_turn_pattern
@@ -173,6 +181,16 @@ def _cmd_run(ns: argparse.Namespace) -> int:
     except ValueError as e:
         _err("run", str(e))
         return 2
+    if ns.rrd:
+        check_output("--rrd", ns.rrd, (".rrd",))
+        from ..viz import VizUnavailable
+        from ..viz.recorder import require_rerun
+
+        try:
+            require_rerun()
+        except VizUnavailable as e:
+            _err("run", str(e))
+            return 2
     if not planner_name:
         if lasers:
             _err("run", "--laser is read by a host planner (--planner NAME); the firmware's layers use the sonar ring")
@@ -211,9 +229,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         out_dir = Path(ns.out)
         if not ns.tlog and not ns.no_tlog:
             ns.tlog = str(out_dir / "link.tlog")
-    if ns.rrd:
-        check_output("--rrd", ns.rrd, (".rrd",))
-    if ns.rrd or out_dir is not None:
+    if out_dir is not None:
         from ..viz import VizUnavailable
         from ..viz.recorder import require_rerun
 
@@ -229,7 +245,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
     feeds: list[LaserFeed] = []
     try:
         for url, mount, role in lasers:
-            src = open_laser(url, mount)
+            src = open_laser(_without_mount(url), mount)
             try:
                 info = src.start(timeout_s=max(1.0, ns.wait))
             except LaserError as e:
@@ -483,7 +499,7 @@ subcommand("run", help="drive a robot (or a SIL over tcp:) with any controller, 
                                       "waypoints in order; negatives allowed (default: none)"}),
                (("--arrive-in",), {"dest": "arrive_in", "type": positive_float, "default": None, "metavar": "S",
                                    "help": "arrive at the last goal this many seconds after the run starts (timed "
-                                           "planner)"}),
+                                           "planner; default: no set time)"}),
                (("--goal-tolerance",), {"dest": "goal_tolerance", "type": positive_float, "default": None, "metavar": "M",
                                         "help": "a goal counts as reached within this distance, m (default: [run] "
                                                 "goal_tolerance_m, 0.3)"}),
