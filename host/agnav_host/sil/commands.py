@@ -9,6 +9,22 @@ import sys
 from ..cli import nonneg_int, positive_float, subcommand
 
 
+def _scanner(text: str) -> tuple[str, int | None]:
+    """``KIND[:PORT]`` -> (kind, port or None for the device's own; 0 = any free port)."""
+    from .emulators import EMULATOR_KINDS
+
+    kind, _, port = text.strip().lower().partition(":")
+    if kind not in EMULATOR_KINDS:
+        raise argparse.ArgumentTypeError(f"unknown scanner {kind!r}; emulated: {', '.join(EMULATOR_KINDS)}")
+    if not port:
+        return kind, None
+    if EMULATOR_KINDS[kind][0] == "pty":
+        raise argparse.ArgumentTypeError(f"{kind} is served on a pseudo-terminal (its path is printed): no port")
+    if not port.isdigit() or int(port) > 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: the port must be a number 0-65535 (0: any free one)")
+    return kind, int(port)
+
+
 def _param(text: str) -> tuple[str, int]:
     name, sep, value = text.partition("=")
     if not sep or not name:
@@ -35,6 +51,19 @@ def _param(text: str) -> tuple[str, int]:
         (("--param",), {"type": _param, "action": "append", "default": [], "metavar": "NAME=VALUE",
                         "help": "firmware parameter stored in EEPROM before boot (repeatable), e.g. LINK_TIMEOUT_MS=2000"}),
         (("--tlog",), {"default": None, "help": "write the radio traffic (both ways) to this .tlog"}),
+        (("--laser",), {"type": _scanner, "default": None, "metavar": "KIND[:PORT]",
+                        "help": "serve the scenario's laser over the device's own protocol: tim5xx (TCP 2112, CoLa-A and "
+                                "CoLa-B), lms1xx / lms5xx (CoLa-A 2111, CoLa-B 2112), ust (SCIP 2.0, TCP 10940), urg, "
+                                "rplidar (pseudo-terminals); PORT 0 = any free port"}),
+        (("--tilted-laser",), {"dest": "tilted_laser", "type": _scanner, "default": None, "metavar": "KIND[:PORT]",
+                               "help": "serve the scenario's tilted laser the same way (give it another port than --laser)"}),
+        (("--out",), {"default": None, "metavar": "DIR",
+                      "help": "write the truth of the run here when it stops: truth.csv, summary.json, run_info.json"}),
+        (("--stop-at-end",), {"dest": "stop_at_end", "action": "store_true",
+                              "help": "stop serving once the robot arrives, collides or falls into a hole"}),
+        (("--host-config",), {"dest": "host_config", "default": None, "metavar": "FILE",
+                              "help": "write a host config for `agnav run --config FILE`: the scenario's robot, field "
+                                      "and the emulated lasers"}),
         (("--firmware",), {"choices": ["native", "avr"], "default": "native",
                            "help": "native: the firmware built for the PC (default); avr: the real ATmega2560 ELF "
                                    "under simavr at 16 MHz"}),
@@ -72,12 +101,22 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 1
     cfg = SilConfig(firmware_params=tuple(ns.param), firmware=ns.firmware)
+    lasers = tuple(x for x in (ns.laser, ns.tilted_laser) if x is not None)
+    if ns.tilted_laser is not None and ns.laser is None:
+        lasers = ((ns.tilted_laser[0], ns.tilted_laser[1]),)
+        print("agnav sil: --tilted-laser needs --laser too (the horizontal scanner comes first)", file=sys.stderr)
+        return 2
+    if ns.speedup != 1.0 and lasers:
+        print("agnav sil: warning: scanners' time stamps follow the simulated clock; with --speedup the robot side's "
+              "stamps and pacing do not match the wall clock", file=sys.stderr)
     try:
         res = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
-                                     tlog_path=ns.tlog, config=cfg))
+                                     tlog_path=ns.tlog, config=cfg, lasers=lasers, out_dir=ns.out,
+                                     stop_at_end=ns.stop_at_end, host_config=ns.host_config))
     except (SilBuildError, ValueError, OSError) as e:
         where = f"{e.filename}: " if isinstance(e, OSError) and e.filename else ""
         print(f"agnav sil: {where}{getattr(e, 'strerror', None) or e}", file=sys.stderr)
         return 1
-    print(f"agnav sil: stopped at t = {res.t_s:.1f} s, robot at ({res.pose.x_m:.2f}, {res.pose.y_m:.2f})")
+    print(f"agnav sil: stopped at t = {res.t_s:.1f} s, robot at ({res.pose.x_m:.2f}, {res.pose.y_m:.2f}), "
+          f"referee: {res.end_reason}")
     return 0

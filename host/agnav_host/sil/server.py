@@ -23,8 +23,9 @@ import socket
 import sys
 import threading
 import time
+import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 from ..sim.scenario import Scenario
 from ..types import Pose2D
@@ -62,10 +63,94 @@ def parse_endpoint(text: str) -> tuple[str, int]:
 
 @dataclass(frozen=True)
 class ServeResult:
-    """Where a served run stopped: simulated time since boot (s) and the robot's true pose."""
+    """Where a served run stopped: simulated time since boot (s), the robot's true pose and the referee's verdict
+    (``arrived``, ``collision``, ``fell_in_hole``, ``timeout`` when it was stopped before any of them)."""
 
     t_s: float
     pose: Pose2D
+    end_reason: str = "timeout"
+
+
+class _EmulatedScanner:
+    """One scenario laser served by a device emulator: a scan of the true pose published at the laser's rate."""
+
+    def __init__(self, kind: str, port: int | None, laser: object, rng: object, role: str) -> None:
+        from .emulators import geometry_of, make_emulator
+
+        self.kind, self.laser, self.rng, self.role = kind, laser, rng, role
+        self.emu = make_emulator(kind, geometry_of(laser.spec), port)  # type: ignore[attr-defined]
+        self.period_us = int(round(1e6 / laser.spec.rate_hz))  # type: ignore[attr-defined]
+        self.next_us = 0
+        self.where = ""
+
+    def start(self) -> str:
+        self.where = self.emu.start()
+        return self.where
+
+    def url(self) -> str:
+        """The ``agnav run --laser`` URL of this emulator, with the scanner's mounting pose."""
+        m = self.laser.mount  # type: ignore[attr-defined]
+        mount = f"x={m.x_m:g}&y={m.y_m:g}&yaw={math.degrees(m.yaw_rad):g}"
+        if self.role == "tilted_laser":
+            mount += f"&pitch={math.degrees(self.laser.tilt_rad):g}&height={self.laser.height_m:g}"  # type: ignore[attr-defined]
+        if self.kind in ("urg", "rplidar"):
+            return f"{self.kind}:{self.where}?{mount}"
+        port = self.emu.ports[1] if self.kind in ("tim5xx", "lms1xx", "lms5xx") else self.emu.port
+        return f"{self.kind}://127.0.0.1:{port}?{mount}"
+
+    def tick(self, s: SilSession) -> None:
+        if s.t_us < self.next_us:
+            return
+        self.next_us = s.t_us + self.period_us if self.next_us == 0 else self.next_us + self.period_us
+        scan = self.laser.scan(s.plant.world, s.pose, s.t_s, self.rng)  # type: ignore[attr-defined]
+        self.emu.publish(scan.ranges_m, s.t_s)
+
+    def close(self) -> None:
+        self.emu.close()
+
+
+def host_config_text(sc: Scenario, scanners: list[_EmulatedScanner], device: str) -> str:
+    """A host config (``agnav run --config``) for driving this scenario's robot through the served SIL: the robot
+    as its planners see it in ``agnav sim``, the field from ``[meta]``, the emulated lasers with their mounts."""
+    from ..link.config import HostConfig, to_toml
+    from ..sim.field_controllers import field_from_meta
+    from ..sim.runner import robot_spec
+
+    spec = robot_spec(sc)
+    cfg = HostConfig()
+    cfg.link.device = device
+    cfg.link.heartbeat_hz = 2.0
+    cfg.run.control_hz = max(5.0, sc.control_hz)
+    cfg.run.max_speed_m_s = spec.max_speed_m_s
+    cfg.run.start_x_m, cfg.run.start_y_m = sc.start.x_m, sc.start.y_m
+    cfg.run.start_yaw_deg = math.degrees(sc.start.yaw_rad)
+    cfg.run.goal_tolerance_m = sc.goals[-1].tolerance_m
+    r = cfg.robot
+    r.radius_m, r.max_steer_deg, r.min_speed_m_s = spec.radius_m, math.degrees(spec.max_steer_rad), spec.min_speed_m_s
+    r.max_accel_m_s2, r.max_yaw_rate_rad_s = spec.max_accel_m_s2, spec.max_yaw_rate_rad_s
+    r.footprint_offset_m, r.stop_lag_s = spec.footprint_offset_m, spec.stop_lag_s
+    f = field_from_meta(sc)
+    cfg.field.row_side, cfg.field.row_offset_m, cfg.field.row_half_width_m = f.row_side, f.row_offset_m, f.row_half_width_m
+    cfg.field.row_method, cfg.field.turns = f.row_method, f"{f.first_turn},{f.lanes_per_turn}"
+    for sc_ in scanners:
+        sec = cfg.laser if sc_.role == "laser" else cfg.tilted_laser
+        sec.url = sc_.url().split("?")[0]
+        m = sc_.laser.mount  # type: ignore[attr-defined]
+        sec.x_m, sec.y_m, sec.yaw_deg = m.x_m, m.y_m, math.degrees(m.yaw_rad)
+        if sc_.role == "tilted_laser":
+            sec.pitch_deg = math.degrees(sc_.laser.tilt_rad)  # type: ignore[attr-defined]
+            sec.height_m = sc_.laser.height_m  # type: ignore[attr-defined]
+    return to_toml(cfg, f"agnav run against `agnav sil {sc.name}`: the scenario's robot, field and emulated lasers")
+
+
+def _robot_command(sc: Scenario, scanners: list[_EmulatedScanner], device: str) -> str:
+    goals = " ".join(f"--goal {g.x_m:g},{g.y_m:g}" + (f",{math.degrees(g.yaw_rad):g}" if g.yaw_rad is not None else "")
+                     for g in sc.goals)
+    arrive = f" --arrive-in {sc.goals[-1].arrival_s:g}" if sc.goals[-1].arrival_s is not None else ""
+    lasers = " ".join(f"--laser '{x.url()}'" for x in scanners)
+    st = sc.start
+    return (f"agnav run --device {device} {lasers} --start {st.x_m:g},{st.y_m:g},{math.degrees(st.yaw_rad):g} "
+            f"{goals}{arrive} --goal-tolerance {sc.goals[-1].tolerance_m:g} --planner NAME").replace("  ", " ")
 
 
 @dataclass
@@ -77,6 +162,10 @@ class ServeOptions:
     seed: int = 0
     tlog_path: str | None = None
     config: SilConfig | None = None
+    lasers: tuple[tuple[str, int | None], ...] = ()  # (kind, port) of the horizontal scanner, then the tilted one
+    out_dir: str | None = None  # the truth of the run: truth.csv, summary.json, run_info.json
+    stop_at_end: bool = False  # stop serving once the referee ends the run (arrived, collision, fell in a hole)
+    host_config: str | None = None  # write the robot side's host config (robot, field, lasers) here
 
 
 def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m: print(m, file=sys.stderr),
@@ -116,6 +205,11 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
     s = None
     tlog = None
     client: socket.socket | None = None
+    scanners: list[_EmulatedScanner] = []
+    truth: list[tuple[float, ...]] = []
+    referee = None
+    wall0 = time.monotonic()
+    t0 = 0
     try:
         s = SilSession(sc, opt.seed, opt.config)
         tlog = Tlog(opt.tlog_path) if opt.tlog_path else None
@@ -126,6 +220,26 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
             log(f"agnav sil: {sc.name}: MAVLink on tcp:{bound[0]}:{bound[1]} (speedup {opt.speedup:g})")
         if slave_name is not None:
             log(f"agnav sil: MAVLink on pty {slave_name}")
+        lasers = [(sc.laser, s.rng_laser, "laser"), (sc.tilted_laser, s.rng_tilted, "tilted_laser")]
+        for (kind, port), (laser, rng, role) in zip(opt.lasers, lasers):
+            if laser is None:
+                raise ValueError(f"--{role.replace('_', '-')} {kind}: scenario {sc.name!r} has no "
+                                 f"[{role}] to serve")
+            x = _EmulatedScanner(kind, port, laser, rng, role)
+            scanners.append(x)
+            where = x.start()
+            log(f"agnav sil: {role.replace('_', ' ')} {laser.spec.name} as {kind} on {where}")
+        device = f"tcp:{bound[0]}:{bound[1]}" if bound is not None else (slave_name or "")
+        if scanners:
+            log(f"agnav sil: robot side: {_robot_command(sc, scanners, device)}")
+        if opt.host_config:
+            from pathlib import Path
+
+            Path(opt.host_config).write_text(host_config_text(sc, scanners, device), encoding="utf-8")
+            log(f"agnav sil: host config for the robot side: {opt.host_config}")
+        from ..sim.referee import Referee
+
+        referee = Referee(sc)
         if ready is not None:
             ready(bound, slave_name)
 
@@ -150,6 +264,7 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                     pass  # nobody reading the pty: the bytes are lost, like on a radio
 
         s.on_downlink = to_clients
+        referee_said = [False]
         wall0 = time.monotonic()
         t0 = s.t_us
         end_us = None if opt.duration_s is None else t0 + int(opt.duration_s * 1e6)
@@ -184,13 +299,29 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                         elif data:
                             s.up.send(s.t_us, data)
                 s.step()
+                for x in scanners:
+                    x.tick(s)
+                r = s.plant.robot
+                cl = s.plant.clearance(s.t_s)
+                if opt.out_dir:
+                    truth.append((s.t_s, r.pose.x_m, r.pose.y_m, r.pose.yaw_rad, r.speed_m_s, r.yaw_rate_rad_s, cl,
+                                  referee.goal_index))
+                if referee.judge(s.t_s, r, cl) is not None and not referee_said[0]:
+                    referee_said[0] = True
+                    log(f"agnav sil: referee: {referee.reason} at t = {s.t_s:.2f} s")
+                    if opt.stop_at_end:
+                        break
                 lag = (s.t_us - t0) * 1e-6 / opt.speedup - (time.monotonic() - wall0)
                 if lag > 0:
                     time.sleep(lag)
         except KeyboardInterrupt:
             pass
-        return ServeResult(s.t_s, s.pose)
+        return ServeResult(s.t_s, s.pose, referee.reason if referee is not None else "timeout")
     finally:
+        for x in scanners:
+            x.close()
+        if opt.out_dir and s is not None and referee is not None and truth:
+            _write_truth(opt, sc, truth, referee, wall0, t0 * 1e-6, log)
         if main:  # a second Ctrl-C (or SIGTERM) while cleaning up must not cut the cleanup short
             old_int = signal.signal(signal.SIGINT, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
@@ -208,6 +339,40 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
         if main:
             signal.signal(signal.SIGINT, old_int)
             signal.signal(signal.SIGTERM, old_term)
+
+
+def _write_truth(opt: ServeOptions, sc: Scenario, truth: list[tuple[float, ...]], referee: object, wall0: float,
+                 t0_s: float, log: Callable[[str], None]) -> None:
+    """The served run as the referee saw it: ``truth.csv`` (the true pose every world step, simulated seconds since
+    the firmware booted), ``summary.json`` (the metric keys of ``agnav sim``, times since serving began) and
+    ``run_info.json`` with ``monotonic_at_sim_zero_s``: a robot-side time on ``time.monotonic()`` is simulated time
+    ``(m - monotonic_at_sim_zero_s) * speedup``."""
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..sim.metrics import RunMetrics
+    from ..sim.runner import TRAJECTORY_COLUMNS
+
+    out = Path(opt.out_dir or ".")
+    out.mkdir(parents=True, exist_ok=True)
+    arr = np.array(truth, dtype=float)
+    lines = [",".join(TRAJECTORY_COLUMNS)] + [f"{r[0]:.4f},{r[1]:.6f},{r[2]:.6f},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f},{r[6]:.6f},"
+                                              f"{int(r[7])}" for r in arr]
+    (out / "truth.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    last = sc.goals[-1]
+    ref: Any = referee
+    arr[:, 0] -= t0_s
+    m = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6], (last.x_m, last.y_m),
+                           last.yaw_rad, None, ref.reason == "arrived",
+                           None if ref.arrival_s is None else ref.arrival_s - t0_s)
+    (out / "summary.json").write_text(json.dumps(m.to_dict(), indent=2) + "\n", encoding="utf-8")
+    info = {"scenario": sc.name, "seed": opt.seed, "end_reason": ref.reason,
+            "arrival_sim_s": ref.arrival_s, "serve_start_sim_s": t0_s, "speedup": opt.speedup,
+            "monotonic_at_sim_zero_s": wall0 - t0_s / opt.speedup}
+    (out / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    log(f"agnav sil: wrote {out / 'truth.csv'}, {out / 'summary.json'}, {out / 'run_info.json'}")
 
 
 def _raise_interrupt(signum: int, frame: object) -> None:
