@@ -69,6 +69,8 @@ class RobotOutcome:
     t_s: float
     message: str = ""
     latency_s: list[float] = field(default_factory=list)  # per scan: command sent - scan stamp
+    wait_s: list[float] = field(default_factory=list)  # per scan: the loop took it - scan stamp
+    step_s: list[float] = field(default_factory=list)  # per scan: the controller's step
     steps: int = 0
     scans: int = 0
     holds: int = 0
@@ -299,14 +301,23 @@ class RobotRun:
 
     # ---- the run -----------------------------------------------------------------------------------------------
     def run(self) -> RobotOutcome:
-        """Drive until the last goal is reached, ``duration_s`` is up, a planning error, or Ctrl-C
-        (KeyboardInterrupt propagates after the robot was told to stop: the caller e-stops)."""
+        """Drive until the last goal is reached, ``duration_s`` is up, a planning error, or Ctrl-C (reason
+        ``interrupted``: the robot is told to stop at once; the caller e-stops it)."""
+        try:
+            return self._run()
+        except KeyboardInterrupt:
+            self.robot.stop()
+            out = self._outcome
+            out.reason, out.t_s = "interrupted", self.clock() - self.t0
+            return out
+
+    def _run(self) -> RobotOutcome:
         from .planning.base import PlanningError
 
         s = self.settings
         period = 1.0 / s.control_hz
         self.t0 = self.clock()
-        out = RobotOutcome("duration", 0.0)
+        out = self._outcome = RobotOutcome("duration", 0.0)
         next_status = 0.0
         last_scan: LaserScan | None = None
         while True:
@@ -336,6 +347,8 @@ class RobotRun:
                 out.scans += 1
                 if d.command is not None and not d.hold and not d.arrived:
                     out.latency_s.append(self.clock() - self.t0 - scan.stamp_s)
+                    out.wait_s.append(t - scan.stamp_s)
+                    out.step_s.append(d.step_s)
                 last_scan = d.observation.scan if d.observation is not None and d.observation.scan is not None else last_scan
             if d.hold:
                 out.holds += 1

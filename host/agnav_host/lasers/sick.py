@@ -8,17 +8,25 @@ driver built on it (a :class:`~agnav_host.lasers.base.ThreadedLaser`); the SIL's
 Sources. Facts come from these documents (the code is this module's own); each fact below names its source:
 
 - [TL] SICK Technical Information "Telegram Listing, LiDAR sensors LMS1xx, LMS5xx, TiM2xx, TiM5xx, TiM7xx, ...",
-  8014631/16U4/2020-08-21: ch. 2.1 binary telegram (CoLa B), 2.2 ASCII telegram (CoLa A), 2.3 variable types,
-  ch. 4 "Send data permanently" (``sEN``/``sEA LMDscandata``) and the ``sRA``/``sSN LMDscandata`` output.
+  8014631/16U4/2020-08-21: the reference the device manuals point to for ``LMDscandata`` ("see the telegram
+  listing (no. 8014631) under Send Data Permanently in Chapter 4"); ch. 2.1 binary telegram (CoLa B), 2.2 ASCII
+  telegram (CoLa A), 2.3 variable types, 2.4 command basics. Its field tables are reproduced in the manuals
+  below, which is where they were read here.
 - [TIM] SICK Technical Information "TiM55x/56x/57x ranging laser scanner", 8015883/YZK8/2016-07-07, ch. 5.2
   (``sRN LMDscandata`` single output, ``sEN LMDscandata`` continuous output; "the TiM5xx begins ... to measure
   automatically") and ch. 5.3 (the measured value output table).
-- [LMS4] SICK Operating Instructions LMS4000 8023198 (2018-06-18 and 16S6/2020-01-24), annex 12.1 and 12.3.1.2:
-  the per-field CoLa-A / CoLa-B value table of ``LMDscandata``, the framing sentence, the examples with hex.
+- [LMS4] SICK Operating Instructions LMS4000 8023198 (2018-06-18 and 16S6/2020-01-24) annex 12.1, LMS4400/LMS4500
+  8023202/16S6/2020-01-24 annex 12.1, LMS4000 8027168/1MNR/2024-10-25 annex 12.3.1.2: the per-field CoLa-A /
+  CoLa-B value table of ``LMDscandata``, the framing sentence, the examples with hex, the reserved values.
 - [LMS1] SICK Operating Instructions LMS1xx 8012471/ZN27/2017-06-09 ch. 3.8.3; [LMS5] SICK Operating
-  Instructions LMS5xx 8013796/ZM63/2017-05-09 ch. 3 (log in, ``LMCstartmeas``, ``Run``) and LMS500 family
-  8013796/UL20/2010-09-27 ch. 10.2.5 (start/stop angle -50 000 ... +1 850 000 in 1/10 000 deg).
-- [TIM781] SICK Operating Instructions TiM781 8024232/1ONO/2024-09-25, 12.3.1.5.1 "SOPAS error codes".
+  Instructions LMS5xx 8013796/ZM63/2017-05-09 ch. 3 (log in, ``LMCstartmeas``, ``Run``) and LMS500 product family
+  8013796/UL20/2010-09-27 ch. 10.2.1 (``sAN LMCstartmeas 0`` = no error), 10.2.5 (start/stop angle -50 000 ...
+  +1 850 000 in 1/10 000 deg), 10.2.7 (``sMN SetAccessMode 03 F4724744`` -> ``sAN SetAccessMode 1``, user level 3
+  "authorised client", hash F4724744h; level 2 maintenance B21ACE26h; "measurement values will not be provided
+  until the user logs out"), 10.2.12 (``sMN Run`` logs out; its answer's value is described both as "0 = accepted"
+  and as "1 = no error", so the driver does not judge it).
+- [TIM781] SICK Operating Instructions TiM781 8024232/1ONO/2024-09-25 12.3.1.5.1 "SOPAS error codes", and
+  8024231/2019-03-29 ch. 7.3 (270 deg "(-45 deg to 225 deg)").
 - [BULK] SICK Operating Instructions Bulkscan LMS511 8014829/ZNC5/2017-06-06, tab. 11 (CoLa-B frame).
 
 Framing
@@ -71,7 +79,7 @@ Command layout [TL 2.4]: three letters (``sRN`` read, ``sWN`` write, ``sMN`` met
   1/10 mm units, so mm is what the scale yields).
 
 Angles. The device's angle 0 points to its right and angles grow counter-clockwise seen from above: a TiM5xx /
-LMS1xx scans 270 deg "(-45 deg to 225 deg)" [TIM781 7.3.1, TIM 5.3 start angle -450 000 ... +2 250 000], an LMS5xx
+LMS1xx scans 270 deg "(-45 deg to 225 deg)" [TIM781 7.3, TIM 5.3 start angle -450 000 ... +2 250 000], an LMS5xx
 -5 ... 185 deg [LMS5 10.2.5], both symmetric about 90 deg = straight ahead; "the X-axis points to the right in
 the SICK lidar system" and the ROS angle is the SICK angle minus 90 deg (SICK's maintainers in sick_scan_xd
 issue #478). So the sensor-frame angle (0 = forward, CCW positive) is ``SICK angle - 90 deg`` with the same sense
@@ -91,8 +99,8 @@ poll: one ``sRN LMDscandata`` per scan), ``range_min=M`` / ``range_max=M`` (metr
 :data:`SICK_KINDS`, typical data-sheet values of the TiM561, LMS111 and LMS511, not taken from the documents
 above). On connect it reads ``sRN DeviceIdent`` and checks the name starts with the kind's prefix (``TiM5``,
 ``LMS1``, ``LMS5``), reads ``sRN SerialNumber``, on an LMS logs in (``sMN SetAccessMode 03 F4724744``, the
-"authorized client" [LMS5 ch. 3, LMS4]), starts the measurement (``sMN LMCstartmeas`` -> ``sAN LMCstartmeas 0``
-[LMS1 3.8.3]) and logs out (``sMN Run`` -> ``sAN Run 1``); a TiM5xx measures from power-up [TIM 5.2]. Beams with
+"authorised client" [LMS5 10.2.7]), starts the measurement (``sMN LMCstartmeas`` -> ``sAN LMCstartmeas 0``
+[LMS1 3.8.3, LMS5 10.2.1]) and logs out (``sMN Run`` [LMS5 10.2.12]); a TiM5xx measures from power-up [TIM 5.2]. Beams with
 the value 0 and beams closer than ``range_min`` are NaN. In stream mode a connection silent for
 :attr:`SickScanner.stall_s` is treated as lost and re-made (the device streams at its scan rate).
 """
@@ -138,7 +146,7 @@ _ETX = 0x03
 _B_MAGIC = b"\x02\x02\x02\x02"
 MAX_TELEGRAM_BYTES = 1 << 20  # no LMDscandata comes near (5 channels x 1141 x 2 bytes is ~11 kB)
 DEVICE_CLOCK_WRAP_S = 2**32 * 1e-6  # time since start-up: uint_32 microseconds
-CLIENT_LEVEL = 3  # "Authorized client" [LMS5 ch. 3, LMS4 12.3.1.2.2]
+CLIENT_LEVEL = 3  # "Authorised client" [LMS5 10.2.7]
 CLIENT_PASSWORD_HASH = 0xF4724744
 
 #: ``sFA`` error codes, numbered in the order of the table "SOPAS error codes" [TIM781 12.3.1.5.1]:
@@ -1182,9 +1190,7 @@ class SickScanner(ThreadedLaser):
         ans = self._request(encode_command(self.cola, "sMN", "LMCstartmeas"), "sAN", "LMCstartmeas", deadline)
         if (err := read_fields(ans).uint("error code", 8)) != 0:
             raise TelegramError(f"{self.address}: sMN LMCstartmeas answered error {err}")
-        ans = self._request(encode_command(self.cola, "sMN", "Run"), "sAN", "Run", deadline)
-        if read_fields(ans).uint("success", 8) != 1:
-            raise TelegramError(f"{self.address}: sMN Run (log out, measure) answered 0")
+        self._request(encode_command(self.cola, "sMN", "Run"), "sAN", "Run", deadline)  # value: see [LMS5 10.2.12]
 
     def _disconnect(self) -> None:
         sock, self._sock = self._sock, None

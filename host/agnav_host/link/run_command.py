@@ -435,13 +435,17 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
 
         run = RobotRun(robot, loop, settings, feeds, outputs, ardupilot=ns.autopilot == "ardupilot", say=say,
                        status=lambda t: print(_status_line(ep, t), flush=True), sleep=lambda s: _sleep(s))
+        import signal
+        import threading
+
+        main_thread = threading.current_thread() is threading.main_thread()
+        old_term = signal.signal(signal.SIGTERM, _raise_interrupt) if main_thread else None
         try:
             outcome = run.run()
-        except KeyboardInterrupt:
-            if outputs is not None:
-                outputs.abandon()
-                outputs = None
-            return _interrupted(robot)
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGTERM, old_term)
+        rc = _interrupted(robot) if outcome.reason == "interrupted" else 0
         lat = latency_summary(outcome.latency_s)
         if outcome.reason == "arrived":
             print(outcome.message)
@@ -459,7 +463,9 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
                                 "stamps": f.info.stamps, "scans": f.source.stats.scans,
                                 "malformed": f.source.stats.malformed, "reconnects": f.source.stats.reconnects}
                                for f in feeds],
-                    "laser_to_command": lat, "latency_s": [round(v, 6) for v in outcome.latency_s]}
+                    "laser_to_command": lat, "scan_to_loop": latency_summary(outcome.wait_s),
+                    "controller_step": latency_summary(outcome.step_s),
+                    "latency_s": [round(v, 6) for v in outcome.latency_s]}
             try:
                 for p in outputs.finish(settings, outcome, info, plot=not ns.no_plot):
                     print(f"  wrote {p}")
@@ -472,12 +478,16 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
         if outcome.reason == "planning_error":
             _err("run", f"planner {planner_name}: {_plain(PlanningError(outcome.message))}; stopped")
             return 1
-        return 0
+        return rc
     finally:
         if outputs is not None:
             outputs.abandon()
         print(_stats_line(ep), file=sys.stderr)
         ep.close()
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # SIGTERM ends a run like Ctrl-C: the robot stopped and e-stopped, the outputs written
 
 
 def _tilted_mount(feed: Any) -> Any:

@@ -109,9 +109,10 @@ class _EmulatedScanner:
         self.emu.close()
 
 
-def host_config_text(sc: Scenario, scanners: list[_EmulatedScanner], device: str) -> str:
+def host_config_text(sc: Scenario, scanners: list[_EmulatedScanner], device: str, landmarks_file: str = "") -> str:
     """A host config (``agnav run --config``) for driving this scenario's robot through the served SIL: the robot
-    as its planners see it in ``agnav sim``, the field from ``[meta]``, the emulated lasers with their mounts."""
+    as its planners see it in ``agnav sim``, the field from ``[meta]``, the emulated lasers with their mounts and,
+    when the scenario has surveyed posts, ``landmarks_file`` (written by the caller) to localise on them."""
     from ..link.config import HostConfig, to_toml
     from ..sim.field_controllers import field_from_meta
     from ..sim.runner import robot_spec
@@ -125,6 +126,7 @@ def host_config_text(sc: Scenario, scanners: list[_EmulatedScanner], device: str
     cfg.run.start_x_m, cfg.run.start_y_m = sc.start.x_m, sc.start.y_m
     cfg.run.start_yaw_deg = math.degrees(sc.start.yaw_rad)
     cfg.run.goal_tolerance_m = sc.goals[-1].tolerance_m
+    cfg.run.landmarks_file = landmarks_file
     r = cfg.robot
     r.radius_m, r.max_steer_deg, r.min_speed_m_s = spec.radius_m, math.degrees(spec.max_steer_rad), spec.min_speed_m_s
     r.max_accel_m_s2, r.max_yaw_rate_rad_s = spec.max_accel_m_s2, spec.max_yaw_rate_rad_s
@@ -235,7 +237,16 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
         if opt.host_config:
             from pathlib import Path
 
-            Path(opt.host_config).write_text(host_config_text(sc, scanners, device), encoding="utf-8")
+            hc = Path(opt.host_config)
+            posts = ""
+            if sc.meta.get("landmarks") and scanners:
+                lm = hc.with_name(hc.stem + "_landmarks.csv")
+                lm.write_text("x_m,y_m,radius_m\n" + "".join(f"{x:g},{y:g},{r:g}\n" for x, y, r in sc.meta["landmarks"]),
+                              encoding="utf-8")
+                posts = str(lm.resolve())
+            tmp = hc.with_name(hc.name + ".part")  # whole or not at all: the robot side waits for this file
+            tmp.write_text(host_config_text(sc, scanners, device, posts), encoding="utf-8")
+            tmp.replace(hc)
             log(f"agnav sil: host config for the robot side: {opt.host_config}")
         from ..sim.referee import Referee
 

@@ -6,8 +6,8 @@ docstring names the SICK documents each fact comes from). What the emulator does
 - Ports: a TiM5xx serves both encodings on TCP 2112 and tells them apart by each telegram's first bytes; an
   LMS1xx / LMS5xx serves CoLa-A on 2111 and CoLa-B on 2112 (``ports=(cola_a, cola_b)``; 0 = any free port).
   :meth:`SickEmulator.start` returns ``tcp:HOST:PORT`` (TiM5xx) or ``tcp:HOST:A_PORT,tcp:HOST:B_PORT`` (LMS).
-- Requests: ``sMN SetAccessMode`` (level 3 with the hash F4724744, the "authorized client", answers
-  ``sAN SetAccessMode 1``, anything else 0), ``sRN DeviceIdent`` (name and version, e.g. ``TiM561``),
+- Requests: ``sMN SetAccessMode`` (level 3 with the hash F4724744h, "authorised client", or level 2 with
+  B21ACE26h, "maintenance", answers ``sAN SetAccessMode 1``, anything else 0), ``sRN DeviceIdent`` (name and version, e.g. ``TiM561``),
   ``sRN SerialNumber``, ``sRN FirmwareVersion``, ``sRN LMDscandata`` (``sRA`` with the newest published scan;
   the answer waits for the first one), ``sEN LMDscandata 1`` / ``0`` (``sEA``, then ``sSN LMDscandata`` for every
   published scan while subscribed), ``sMN LMCstartmeas`` / ``LMCstopmeas`` (``sAN ... 0``; ``sFA 1``,
@@ -80,6 +80,7 @@ _UNKNOWN_NAME = 0xB
 _UNKNOWN_COMMAND = 0xC
 _INVALID_CHARACTER = 0x11
 
+_MAINTENANCE_HASH = 0xB21ACE26  # user level 2 [LMS500 family 8013796/UL20 tab. 22]
 _U32 = 2**32
 
 
@@ -168,6 +169,8 @@ class SickEmulator:
 
     def close(self) -> None:
         self.board.close()
+        for t in self._transports:
+            t.stop.set()  # every listener and client winds down at once, then each is joined
         for t in self._transports:
             t.close()
         self._transports = []
@@ -308,12 +311,12 @@ class SickEmulator:
                 r = read_fields(cmd)
                 level, pw = r.uint("user level", 8), r.uint("password hash", 32)
                 r.done()
-                ok = (level, pw) == (CLIENT_LEVEL, CLIENT_PASSWORD_HASH)
+                ok = (level, pw) in ((CLIENT_LEVEL, CLIENT_PASSWORD_HASH), (2, _MAINTENANCE_HASH))
                 if ok:
                     client.access = level
                 return [encode_command(cola, "sAN", name, ("u8", int(ok)))]
             if name in ("LMCstartmeas", "LMCstopmeas"):
-                if client.access < CLIENT_LEVEL:
+                if client.access == 0:  # not logged in
                     return [sopas_error_payload(cola, _ACCESS_DENIED)]
                 return [encode_command(cola, "sAN", name, ("u8", 0))]
             if name == "Run":
