@@ -490,7 +490,8 @@ def test_a_tim5xx_url_on_an_lms5xx_is_the_wrong_device(emulators, lasers):
     laser = lasers(f"tim5xx://127.0.0.1:{emu.ports[1]}")
     with pytest.raises(WrongDeviceError) as e:
         laser.start(timeout_s=2.0)
-    assert "LMS511" in str(e.value) and "'TiM5'" in str(e.value) and f"lms5xx://127.0.0.1:{emu.ports[1]}" in str(e.value)
+    text = str(e.value)
+    assert "LMS511" in text and "'TiM5'" in text and f"lms5xx://127.0.0.1:{emu.ports[1]}" in text
 
 
 def test_the_wrong_encoding_for_the_port_says_which_to_use(emulators, lasers):
@@ -511,6 +512,11 @@ def test_the_wrong_encoding_for_the_port_says_which_to_use(emulators, lasers):
 def test_bad_url_options(query, words):
     with pytest.raises(LaserUrlError, match=words):
         open_laser(f"tim5xx://192.0.2.1?{query}")
+
+
+def test_mounting_pose_keys_in_the_url_are_left_to_agnav_run():
+    laser = open_laser("lms1xx://192.0.2.1?cola=a&x=0.2&y=-0.1&yaw=5&pitch=0&height=0.4")
+    assert laser.cola == "a"  # type: ignore[attr-defined]
 
 
 # ---- the emulator answers as the device does ----------------------------------------------------------------

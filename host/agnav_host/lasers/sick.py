@@ -8,75 +8,76 @@ driver built on it (a :class:`~agnav_host.lasers.base.ThreadedLaser`); the SIL's
 Sources. Facts come from these documents (the code is this module's own); each fact below names its source:
 
 - [TL] SICK Technical Information "Telegram Listing, LiDAR sensors LMS1xx, LMS5xx, TiM2xx, TiM5xx, TiM7xx, ...",
-  8014631/16U4/2020-08-21: the reference the device manuals point to for ``LMDscandata`` ("see the telegram
-  listing (no. 8014631) under Send Data Permanently in Chapter 4"); ch. 2.1 binary telegram (CoLa B), 2.2 ASCII
-  telegram (CoLa A), 2.3 variable types, 2.4 command basics. Its field tables are reproduced in the manuals
-  below, which is where they were read here.
-- [TIM] SICK Technical Information "TiM55x/56x/57x ranging laser scanner", 8015883/YZK8/2016-07-07, ch. 5.2
-  (``sRN LMDscandata`` single output, ``sEN LMDscandata`` continuous output; "the TiM5xx begins ... to measure
+  8014631/16U4/2020-08-21: the reference the device manuals point to for ``LMDscandata`` ("see the telegram listing
+  (no. 8014631) under Send Data Permanently in Chapter 4"); ch. 2.1 binary telegram (CoLa B), 2.2 ASCII telegram
+  (CoLa A), 2.3 variable types, 2.4 command basics. Its field tables are reproduced in the manuals below, which is
+  where they were read here.
+- [TIM] SICK Technical Information "TiM55x/56x/57x ranging laser scanner", 8015883/YZK8/2016-07-07, ch. 5.2 (``sRN
+  LMDscandata`` single output, ``sEN LMDscandata`` continuous output; "the TiM5xx begins ... to measure
   automatically") and ch. 5.3 (the measured value output table).
 - [LMS4] SICK Operating Instructions LMS4000 8023198 (2018-06-18 and 16S6/2020-01-24) annex 12.1, LMS4400/LMS4500
-  8023202/16S6/2020-01-24 annex 12.1, LMS4000 8027168/1MNR/2024-10-25 annex 12.3.1.2: the per-field CoLa-A /
-  CoLa-B value table of ``LMDscandata``, the framing sentence, the examples with hex, the reserved values.
-- [LMS1] SICK Operating Instructions LMS1xx 8012471/ZN27/2017-06-09 ch. 3.8.3; [LMS5] SICK Operating
-  Instructions LMS5xx 8013796/ZM63/2017-05-09 ch. 3 (log in, ``LMCstartmeas``, ``Run``) and LMS500 product family
-  8013796/UL20/2010-09-27 ch. 10.2.1 (``sAN LMCstartmeas 0`` = no error), 10.2.5 (start/stop angle -50 000 ...
-  +1 850 000 in 1/10 000 deg), 10.2.7 (``sMN SetAccessMode 03 F4724744`` -> ``sAN SetAccessMode 1``, user level 3
-  "authorised client", hash F4724744h; level 2 maintenance B21ACE26h; "measurement values will not be provided
-  until the user logs out"), 10.2.12 (``sMN Run`` logs out; its answer's value is described both as "0 = accepted"
-  and as "1 = no error", so the driver does not judge it).
+  8023202/16S6/2020-01-24 annex 12.1, LMS4000 8027168/1MNR/2024-10-25 annex 12.3.1.2: the per-field CoLa-A / CoLa-B
+  value table of ``LMDscandata``, the framing sentence, the examples with hex, the reserved values.
+- [LMS1] SICK Operating Instructions LMS1xx 8012471/ZN27/2017-06-09 ch. 3.8.3; [LMS5] SICK Operating Instructions
+  LMS5xx 8013796/ZM63/2017-05-09 ch. 3 (log in, ``LMCstartmeas``, ``Run``) and LMS500 product family
+  8013796/UL20/2010-09-27 ch. 10.2.1 (``sAN LMCstartmeas 0`` = no error), 10.2.5 (start/stop angle -50 000 ... +1
+  850 000 in 1/10 000 deg), 10.2.7 (``sMN SetAccessMode 03 F4724744`` -> ``sAN SetAccessMode 1``, user level 3
+  "authorised client", hash F4724744h; level 2 maintenance B21ACE26h; "measurement values will not be provided until
+  the user logs out"), 10.2.12 (``sMN Run`` logs out; its answer's value is described both as "0 = accepted" and as
+  "1 = no error", so the driver does not judge it).
 - [TIM781] SICK Operating Instructions TiM781 8024232/1ONO/2024-09-25 12.3.1.5.1 "SOPAS error codes", and
   8024231/2019-03-29 ch. 7.3 (270 deg "(-45 deg to 225 deg)").
 - [BULK] SICK Operating Instructions Bulkscan LMS511 8014829/ZNC5/2017-06-06, tab. 11 (CoLa-B frame).
 
 Framing
-  CoLa-A [TL 2.2, LMS4 12.1]: ``STX (02h) + ASCII payload + ETX (03h)``; fields are separated by one space (20h).
-  Numbers are hexadecimal without leading zeros ("Leading zeros are not displayed in ASCII" [LMS4]); a number
-  written with a sign (``+20``) is decimal ([LMS4] table 84: ``sWN LMCminValidMeasPointOutput 1 +20`` and the
-  value columns "+841d (349h)"). A signed field in hex is its two's complement (a TiM start angle of -45 deg is
-  ``FFF92230`` [TIM 5.3, TL]). A ``Real`` is the 8 hex digits of its IEEE 754 single (``3F800000`` = 1.0).
-  CoLa-B [TL 2.1, LMS4 12.1, BULK tab. 11]: ``02 02 02 02`` + payload length (4 bytes, big-endian, without the
-  framing) + payload + 1 byte checksum = XOR of the payload bytes. "With CoLa Binary, framing has a length of
-  9 bytes" [LMS4]. Vendor examples that this codec reproduces byte for byte: ``sEN LMDscandata 1`` =
-  ``02 02 02 02 00 00 00 11 ... 20 01 33`` and ``sRN LMDscandata`` checksum ``05`` [LMS4 table 13, TIM781 7.3.2],
-  ``sMN SetAccessMode 03 F4724744``: length 17h, checksum B3 [LMS4 12.3.1.2.2]. (The LMS4000 manual prints ``33``
-  as the checksum of the ``sEA`` confirmation too; its XOR is ``3C``: that example repeats the ``sEN`` one.)
-  A CoLa-A payload begins with a letter, so ``02 02`` at the start means CoLa-B: that is how
-  :class:`Deframer` tells the two apart, telegram by telegram.
+  CoLa-A (defined in [TL 2.2]; read in [LMS4 12.1, 12.3.1.2]): ``STX (02h) + ASCII payload + ETX (03h)``; fields are
+  separated by one space (20h). Numbers are hexadecimal without leading zeros ("Leading zeros are not displayed in
+  ASCII" [LMS4]); a number written with a sign (``+20``) is decimal ([LMS4] table 84: ``sWN
+  LMCminValidMeasPointOutput 1 +20`` and the value columns "+841d (349h)"). A signed field in hex is its two's
+  complement (a TiM start angle of -45 deg is ``FFF92230`` [TIM 5.3, TL]). A ``Real`` is the 8 hex digits of its
+  IEEE 754 single (``3F800000`` = 1.0).
+  CoLa-B (defined in [TL 2.1]; read in [LMS4 12.1, 12.3.1.2], [BULK tab. 11]): ``02 02 02 02`` + payload length (4
+  bytes, big-endian, without the framing) + payload + 1 byte checksum = XOR of the payload bytes. "With CoLa Binary,
+  framing has a length of 9 bytes" [LMS4]. Vendor examples that this codec reproduces byte for byte: ``sEN
+  LMDscandata 1`` = ``02 02 02 02 00 00 00 11 ... 20 01 33`` and ``sRN LMDscandata`` checksum ``05`` [LMS4 table 13,
+  TIM781 7.3.2], ``sMN SetAccessMode 03 F4724744``: length 17h, checksum B3 [LMS4 12.3.1.2.2]. (The LMS4000 manual
+  prints ``33`` as the checksum of the ``sEA`` confirmation too; its XOR is ``3C``: that example repeats the ``sEN``
+  one.) A CoLa-A payload begins with a letter, so ``02 02`` at the start means CoLa-B: that is how :class:`Deframer`
+  tells the two apart, telegram by telegram.
 
-Command layout [TL 2.4]: three letters (``sRN`` read, ``sWN`` write, ``sMN`` method, ``sEN`` event; answers ``sRA``,
-  ``sWA``, ``sAN``, ``sEA``, ``sSN`` event data, ``sFA`` error), a space, the name, a space, the parameters (ASCII
-  fields, or the binary values in CoLa-B). A string parameter of variable length is its length then its text:
-  CoLa-A ``sRA DeviceIdent 10 LMS10x_FieldEval 10 V1.36-21.10.2010`` (length in hex), CoLa-B
-  ``sRA DeviceIdent 00 08 "MRS6124R" 00 0A "1.1.0.565C"`` (uint_16 length); both as SICK devices answer in the
-  logs of SICK's sick_scan driver. The error answer is ``sFA`` + its code: ``sFA A`` / ``sFA 11`` in CoLa-A (hex),
-  ``sFA`` + uint_16 without a space in CoLa-B (``sFA\\x00\\x04``), as logged in the sick_scan_xd issues #444,
+Command layout (every example in [TIM], [LMS1], [LMS5], [LMS4]): three letters (``sRN`` read, ``sWN`` write, ``sMN``
+  method, ``sEN`` event; answers ``sRA``, ``sWA``, ``sAN``, ``sEA``, ``sSN`` event data, ``sFA`` error), a space,
+  the name, a space, the parameters (ASCII fields, or the binary values in CoLa-B). A string parameter of variable
+  length is its length then its text: CoLa-A ``sRA DeviceIdent 10 LMS10x_FieldEval 10 V1.36-21.10.2010`` (length in
+  hex), CoLa-B ``sRA DeviceIdent 00 08 "MRS6124R" 00 0A "1.1.0.565C"`` (uint_16 length); both as SICK devices answer
+  in the logs of SICK's sick_scan driver. The error answer is ``sFA`` + its code: ``sFA A`` / ``sFA 11`` in CoLa-A
+  (hex), ``sFA`` + uint_16 without a space in CoLa-B (``sFA\\x00\\x04``), as logged in the sick_scan_xd issues #444,
   #128, #136 and #39. The codes are numbered in the order of the table in [TIM781 12.3.1.5.1] (see
   :data:`SOPAS_ERRORS`); the logged cases agree (4 LOCALCONDITIONFAILED for an out-of-range angle, 8
   BUFFER_UNDERFLOW for missing parameters, A VARIABLE_WRITE_ACCESSDENIED without log-in, 11h
   COLA_A_INVALID_CHARACTER for binary bytes sent in CoLa-A).
 
-``LMDscandata`` (``sRA`` answer to ``sRN``, ``sSN`` event after ``sEN LMDscandata 1``), field by field
-  [TL ch. 4, TIM 5.3, LMS4 table 16/17]: version (uint_16; "always 1 up to now" [LMS4], 0 is accepted too),
-  device number (uint_16), serial number (uint_32), device status (2 x uint_8), telegram counter (uint_16),
-  scan counter (uint_16), time since start-up (uint_32, us: "the time at the zero index before the measurement
-  itself starts" [LMS4]), time of transmission (uint_32, us: "when the complete scan is transmitted to the buffer
-  for data output"), digital inputs (2 x uint_8), digital outputs (2 x uint_8), reserved / layer angle
+``LMDscandata`` (``sRA`` answer to ``sRN``, ``sSN`` event after ``sEN LMDscandata 1``), field by field (defined in
+  [TL ch. 4]; read in [TIM 5.3] and [LMS4] tables 16/17): version (uint_16; "always 1 up to now" [LMS4], 0 is
+  accepted too), device number (uint_16), serial number (uint_32), device status (2 x uint_8), telegram counter
+  (uint_16), scan counter (uint_16), time since start-up (uint_32, us: "the time at the zero index before the
+  measurement itself starts" [LMS4]), time of transmission (uint_32, us: "when the complete scan is transmitted to
+  the buffer for data output"), digital inputs (2 x uint_8), digital outputs (2 x uint_8), reserved / layer angle
   (uint_16), scanning frequency (uint_32, 1/100 Hz), measurement frequency (uint_32, 100 Hz [TIM]), number of
-  encoders (uint_16) then per encoder position (uint_32, ticks) and speed (uint_16, mm/s), number of 16-bit
-  channels (uint_16) then per channel: content (string of 5, ``DIST1``..``DIST5``, ``RSSI1``..), scale factor
-  (Real), scale offset (Real), start angle (int_32, 1/10 000 deg), angular step (uint_16, 1/10 000 deg), number
-  of data (uint_16), the data (uint_16 each); number of 8-bit channels (uint_16) and the same block with uint_8
-  data; position (uint_16 flag; if 1: x, y, z, x/y/z rotation as Real and the rotation type as Enum_8 [TIM]);
-  name (uint_16 flag; if 1: the device name as a string of variable length); comment (likewise); time (uint_16
-  flag; if 1: year uint_16, month, day, hour, minute, second uint_8, microsecond uint_32 [TIM, LMS4]); event
-  info (uint_16 flag; if 1: type string of 4, encoder position uint_32, event time uint_32, angle int_32). In
-  CoLa-B the name and comment carry a uint_16 length (as Wireshark's CoLa dissector reads them); in CoLa-A the
-  length is a hex field and the text follows after one space and may contain spaces (``1 B not defined`` in
-  recorded TiM551 telegrams), so the parser reads it by its length. Distance values: 0 = no valid measurement
-  (too dark, out of range or filtered), 1 = dazzled, 4-15 reserved, >= 16 valid [LMS4 "LMDscandata - reserved
-  values"]; distance = value x scale factor + offset, in mm for DIST (the LMS4000's scale factor 0.1 gives
-  1/10 mm units, so mm is what the scale yields).
+  encoders (uint_16) then per encoder position (uint_32, ticks) and speed (uint_16, mm/s), number of 16-bit channels
+  (uint_16) then per channel: content (string of 5, ``DIST1``..``DIST5``, ``RSSI1``..), scale factor (Real), scale
+  offset (Real), start angle (int_32, 1/10 000 deg), angular step (uint_16, 1/10 000 deg), number of data (uint_16),
+  the data (uint_16 each); number of 8-bit channels (uint_16) and the same block with uint_8 data; position (uint_16
+  flag; if 1: x, y, z, x/y/z rotation as Real and the rotation type as Enum_8 [TIM]); name (uint_16 flag; if 1: the
+  device name as a string of variable length); comment (likewise); time (uint_16 flag; if 1: year uint_16, month,
+  day, hour, minute, second uint_8, microsecond uint_32 [TIM, LMS4]); event info (uint_16 flag; if 1: type string of
+  4, encoder position uint_32, event time uint_32, angle int_32). In CoLa-B the name and comment carry a uint_16
+  length (as Wireshark's CoLa dissector reads them); in CoLa-A the length is a hex field and the text follows after
+  one space and may contain spaces (``1 B not defined`` in recorded TiM551 telegrams), so the parser reads it by its
+  length. Distance values: 0 = no valid measurement (too dark, out of range or filtered), 1 = dazzled, 4-15
+  reserved, >= 16 valid [LMS4 "LMDscandata - reserved values", stated for the LMS4000 family; the driver masks the
+  value 0 and whatever lies below range_min]; distance = value x scale factor + offset, in mm for DIST (the
+  LMS4000's scale factor 0.1 gives 1/10 mm units, so mm is what the scale yields).
 
 Angles. The device's angle 0 points to its right and angles grow counter-clockwise seen from above: a TiM5xx /
 LMS1xx scans 270 deg "(-45 deg to 225 deg)" [TIM781 7.3, TIM 5.3 start angle -450 000 ... +2 250 000], an LMS5xx
@@ -96,13 +97,14 @@ beam; the cap bounds that error by half a scan).
 Driver (URL forms in :mod:`agnav_host.lasers`): ``tim5xx://HOST[:PORT]``, ``lms1xx://...``, ``lms5xx://...``, port
 2112 by default; options ``cola=a|b`` (default b), ``mode=stream|poll`` (default stream: ``sEN LMDscandata 1``;
 poll: one ``sRN LMDscandata`` per scan), ``range_min=M`` / ``range_max=M`` (metres; defaults per kind in
-:data:`SICK_KINDS`, typical data-sheet values of the TiM561, LMS111 and LMS511, not taken from the documents
-above). On connect it reads ``sRN DeviceIdent`` and checks the name starts with the kind's prefix (``TiM5``,
-``LMS1``, ``LMS5``), reads ``sRN SerialNumber``, on an LMS logs in (``sMN SetAccessMode 03 F4724744``, the
-"authorised client" [LMS5 10.2.7]), starts the measurement (``sMN LMCstartmeas`` -> ``sAN LMCstartmeas 0``
-[LMS1 3.8.3, LMS5 10.2.1]) and logs out (``sMN Run`` [LMS5 10.2.12]); a TiM5xx measures from power-up [TIM 5.2]. Beams with
-the value 0 and beams closer than ``range_min`` are NaN. In stream mode a connection silent for
-:attr:`SickScanner.stall_s` is treated as lost and re-made (the device streams at its scan rate).
+:data:`SICK_KINDS`, typical data-sheet values of the TiM561, LMS111 and LMS511, not taken from the documents above);
+the mounting-pose keys ``x``, ``y``, ``yaw``, ``pitch``, ``height`` are accepted and left to ``agnav run``. On
+connect it reads ``sRN DeviceIdent`` and checks the name starts with the kind's prefix (``TiM5``, ``LMS1``,
+``LMS5``), reads ``sRN SerialNumber``, on an LMS logs in (``sMN SetAccessMode 03 F4724744``, the "authorised client"
+[LMS5 10.2.7]), starts the measurement (``sMN LMCstartmeas`` -> ``sAN LMCstartmeas 0`` [LMS1 3.8.3, LMS5 10.2.1])
+and logs out (``sMN Run`` [LMS5 10.2.12]); a TiM5xx measures from power-up [TIM 5.2]. Beams with the value 0 and
+beams closer than ``range_min`` are NaN. In stream mode a connection silent for :attr:`SickScanner.stall_s` is
+treated as lost and re-made (the device streams at its scan rate).
 """
 
 from __future__ import annotations
@@ -970,6 +972,7 @@ SICK_KINDS: dict[str, SickKind] = {
 }
 
 _OPTIONS = "cola=a|b, mode=stream|poll, range_min=M, range_max=M"
+_MOUNT_KEYS = ("x", "y", "yaw", "pitch", "height")  # the mounting pose, read by ``agnav run`` from the same URL
 
 
 class SickScanner(ThreadedLaser):
@@ -988,7 +991,7 @@ class SickScanner(ThreadedLaser):
         self.kind = url.kind
         self.device = SICK_KINDS[url.kind]
         self.host, self.port = url.host, url.port
-        known = {"cola", "mode", "range_min", "range_max"}
+        known = {"cola", "mode", "range_min", "range_max", *_MOUNT_KEYS}
         for key, _ in url.options:
             if key not in known:
                 raise LaserUrlError(f"--laser {url.text!r}: unknown option {key!r}; {url.kind} takes {_OPTIONS}")
@@ -1149,8 +1152,8 @@ class SickScanner(ThreadedLaser):
                     raise WrongDeviceError(f"{where} is no SICK scanner speaking CoLa: "
                                            f"{describe_foreign_bytes(bytes(seen))}")
                 raise WrongDeviceError(f"{where} accepted the connection and closed it without answering sRN "
-                                       "DeviceIdent (a SICK scanner does this when it already serves its maximum "
-                                       "of clients)")
+                                       "DeviceIdent (a SICK scanner that serves as many clients as it allows may do "
+                                       "this)")
             self._rx_time = time.monotonic()
             if len(seen) < 512:
                 seen += data[: 512 - len(seen)]

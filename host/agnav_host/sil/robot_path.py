@@ -93,11 +93,14 @@ def run_robot_path(sc: Scenario, planner: str, out: str | Path, lasers: tuple[st
     port = _free_port()
     hc = out / "host.toml"
     hc.unlink(missing_ok=True)
+    def served(kind: str) -> str:  # TCP scanners on any free port; serial ones on a pty
+        return kind if kind in ("urg", "rplidar") else f"{kind}:0"
+
     sil_cmd = _AGNAV + ["sil", sc.name, "--tcp", f"tcp:127.0.0.1:{port}",
-                        "--laser", f"{lasers[0]}:0", "--host-config", str(hc), "--out", str(out / "truth"),
+                        "--laser", served(lasers[0]), "--host-config", str(hc), "--out", str(out / "truth"),
                         "--stop-at-end", "--duration", f"{dur + 5.0:g}", "--seed", str(seed)]
     if len(lasers) > 1:
-        sil_cmd += ["--tilted-laser", f"{lasers[1]}:0"]
+        sil_cmd += ["--tilted-laser", served(lasers[1])]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     sil_log = open(out / "sil.log", "w")
     sil = subprocess.Popen(sil_cmd, stdout=sil_log, stderr=subprocess.STDOUT, env=env, stdin=subprocess.DEVNULL)

@@ -3,22 +3,23 @@
 The telegram formats, framing and error codes are those of the codec in :mod:`agnav_host.lasers.sick` (whose
 docstring names the SICK documents each fact comes from). What the emulator does:
 
-- Ports: a TiM5xx serves both encodings on TCP 2112 and tells them apart by each telegram's first bytes; an
-  LMS1xx / LMS5xx serves CoLa-A on 2111 and CoLa-B on 2112 (``ports=(cola_a, cola_b)``; 0 = any free port).
+- Ports: a TiM5xx serves both encodings on TCP 2112 and tells them apart by each telegram's first bytes; an LMS1xx /
+  LMS5xx serves CoLa-A on 2111 and CoLa-B on 2112 (``ports=(cola_a, cola_b)``; 0 = any free port).
   :meth:`SickEmulator.start` returns ``tcp:HOST:PORT`` (TiM5xx) or ``tcp:HOST:A_PORT,tcp:HOST:B_PORT`` (LMS).
-- Requests: ``sMN SetAccessMode`` (level 3 with the hash F4724744h, "authorised client", or level 2 with
-  B21ACE26h, "maintenance", answers ``sAN SetAccessMode 1``, anything else 0), ``sRN DeviceIdent`` (name and version, e.g. ``TiM561``),
-  ``sRN SerialNumber``, ``sRN FirmwareVersion``, ``sRN LMDscandata`` (``sRA`` with the newest published scan;
-  the answer waits for the first one), ``sEN LMDscandata 1`` / ``0`` (``sEA``, then ``sSN LMDscandata`` for every
-  published scan while subscribed), ``sMN LMCstartmeas`` / ``LMCstopmeas`` (``sAN ... 0``; ``sFA 1``,
+- Requests: ``sMN SetAccessMode`` (level 3 with the hash F4724744h, "authorised client", or level 2 with B21ACE26h,
+  "maintenance", answers ``sAN SetAccessMode 1``, anything else 0), ``sRN DeviceIdent`` (name and version, e.g.
+  ``TiM561``), ``sRN SerialNumber``, ``sRN FirmwareVersion``, ``sRN LMDscandata`` (``sRA`` with the newest published
+  scan; the answer waits for the first one), ``sEN LMDscandata 1`` / ``0`` (``sEA``, then ``sSN LMDscandata`` for
+  every published scan while subscribed), ``sMN LMCstartmeas`` / ``LMCstopmeas`` (``sAN ... 0``; ``sFA 1``,
   METHODIN_ACCESSDENIED, without the log-in), ``sMN Run`` (``sAN Run 1``, logs out).
-- Anything else is answered ``sFA`` with the code of the telegram listing's table: an unknown name
-  B (UNKNOWN_CMD_FOR_NAMESERVER: the name server does not know it), an unknown command type C
-  (UNKNOWN_COLA_COMMAND), missing or unreadable parameters 8 (BUFFER_UNDERFLOW), a bad ``sEN`` value 4
-  (LOCALCONDITIONFAILED). A telegram of the other encoding on a single-encoding LMS port is answered in the
-  port's own encoding (``sFA 11``, COLA_A_INVALID_CHARACTER, on the CoLa-A port; ``sFA C`` on the CoLa-B port):
-  the documents do not say what a device does there, and an immediate answer lets the driver say what is wrong.
-  Frames with a wrong checksum or bytes outside any telegram are dropped without an answer.
+- Anything else is answered ``sFA`` with a code of the SOPAS error table
+  (:data:`~agnav_host.lasers.sick.SOPAS_ERRORS`): an unknown name B (UNKNOWN_CMD_FOR_NAMESERVER: the name server
+  does not know it), an unknown command type C (UNKNOWN_COLA_COMMAND), missing or unreadable parameters 8
+  (BUFFER_UNDERFLOW), a bad ``sEN`` value 4 (LOCALCONDITIONFAILED). A telegram of the other encoding on a
+  single-encoding LMS port is answered in the port's own encoding (``sFA 11``, COLA_A_INVALID_CHARACTER, on the
+  CoLa-A port; ``sFA C`` on the CoLa-B port): the documents do not say what a device does there, and an immediate
+  answer lets the driver say what is wrong. Frames with a wrong checksum or bytes outside any telegram are dropped
+  without an answer.
 
 Telegram fields as the device fills them: telegram and scan counters count the published scans (uint_16, wrap),
 ``time since start-up`` is the first beam's time, ``time of transmission`` the end of the scan (both in us on a
