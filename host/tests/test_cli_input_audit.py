@@ -403,7 +403,7 @@ def no_serve(monkeypatch):
 
     def serve(sc, opt):
         calls.append(opt.tlog_path)
-        return SimpleNamespace(t_s=0.0, pose=SimpleNamespace(x_m=0.0, y_m=0.0))
+        return SimpleNamespace(t_s=0.0, pose=SimpleNamespace(x_m=0.0, y_m=0.0), end_reason="timeout")
 
     monkeypatch.setattr(server, "serve", serve)
     return calls
