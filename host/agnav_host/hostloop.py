@@ -72,7 +72,8 @@ class SensorFrame:
 
 @dataclass(frozen=True)
 class Decision:
-    """What the loop decided at one step: ``command`` to send (None: send nothing, there is no pose yet),
+    """What the loop decided at one step: ``command`` to send (None: send nothing, ``idle`` says why: no pose yet,
+    or no new scan since the last step, when the last command stands),
     ``hold`` the reason when the robot is held stopped, ``arrived`` when the last goal is reached (the loop
     judged it on the planned pose), the planned ``pose`` and the controller's wall time ``step_s``."""
 
@@ -84,6 +85,7 @@ class Decision:
     observation: Observation | None = None
     step_s: float = 0.0
     event: str = ""  # something worth a log line and a STATUSTEXT (a laser fault, a goal reached)
+    idle: str = ""  # why there is no command: "no pose yet", "no new scan"
 
 
 class Localiser(Protocol):
@@ -145,13 +147,13 @@ class HostLoop:
             o = f.odometry
             loc.odometry(o.x_m, o.y_m, o.yaw_rad, o.stamp_s, o.speed_m_s, o.yaw_rate_rad_s)
         if f.pose is None:
-            return Decision(t, None, hold="no pose yet")
+            return Decision(t, None, idle="no pose yet")
         scan = None
         if self.laser_mount is not None:
             assert self.watchdog is not None
             health = self.watchdog.update(f.scan, t)
             if loc is not None and health.ok and f.scan is not None:  # a failed laser must not move the pose
-                loc.scan(f.scan.ranges_m, f.scan.angles_rad, t, f.scan.range_max_m)
+                loc.scan(f.scan.ranges_m, f.scan.angles_rad, f.scan.stamp_s, f.scan.range_max_m)
             pose = loc.pose_at(t) if loc is not None else f.pose
             if not health.ok:
                 event = ""
@@ -159,10 +161,11 @@ class HostLoop:
                     self._faults_said = self.watchdog.faults
                     event = f"laser fault: {health.reason}; holding the robot"
                 return Decision(t, DriveCommand(), hold=f"laser fault: {health.reason}", pose=pose, event=event)
-            if f.scan is not None:
-                s = f.scan
-                scan = LaserScan(s.angle_min_rad, s.angle_increment_rad, s.ranges_m, s.range_max_m, s.stamp_s,
-                                 pose.compose(self.laser_mount))
+            if f.scan is None:  # a laser between two scans: the controller steps on scans, the last command stands
+                return Decision(t, None, pose=pose, idle="no new scan")
+            s = f.scan
+            scan = LaserScan(s.angle_min_rad, s.angle_increment_rad, s.ranges_m, s.range_max_m, s.stamp_s,
+                             pose.compose(self.laser_mount))
         else:
             pose = loc.pose_at(t) if loc is not None else f.pose
         if f.goal_index is None:  # a robot: the loop judges the goals on the planned pose

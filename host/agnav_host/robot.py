@@ -24,7 +24,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .hostloop import Decision, HostLoop, OdometryReport, SensorFrame, firmware_setpoint
-from .lasers import LaserInfo, LaserMount, LaserSource
+from .lasers import DeviceClock, LaserInfo, LaserMount, LaserSource
 from .link.state import PoseState
 from .planning.base import RobotSpec
 from .types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
@@ -35,6 +35,7 @@ __all__ = ["RobotRun", "RunSettings", "RobotOutcome", "LaserFeed", "RunOutputs",
 #: A host controller steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
 #: missed) and it would drive blind, so the robot is held stopped instead.
 POSE_STALE_S = 0.5
+LASER_WAIT_S = 0.25  # with a laser: the longest wait for its next scan before a step without one, s
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
 
 
@@ -256,6 +257,7 @@ class RobotRun:
         self.sleep = sleep
         self.t0 = clock()
         self._odo_stamp: float | None = None
+        self._odo_clock = DeviceClock(wrap_s=2.0 ** 32 / 1000.0)  # time_boot_ms is a 32-bit count of ms
         self._blind = False
         self._hold = ""
 
@@ -267,14 +269,18 @@ class RobotRun:
         report = None
         if p.time_boot_s != self._odo_stamp:
             self._odo_stamp = p.time_boot_s
-            report = OdometryReport(p.x_m, p.y_m, p.yaw_rad, p.time_boot_s, p.speed_m_s, p.yaw_rate_rad_s)
+            # the firmware's clock onto the run's: the localiser extrapolates odometry to the loop's times
+            stamp = self._odo_clock.to_host(p.time_boot_s, p.rx_time_s) - self.t0
+            report = OdometryReport(p.x_m, p.y_m, p.yaw_rad, stamp, p.speed_m_s, p.yaw_rate_rad_s)
         return self.settings.start.compose(Pose2D(p.x_m, p.y_m, p.yaw_rad)), report
 
     def _wait_scan(self, period: float) -> LaserScan | None:
         if self.laser is None:
             self.sleep(period)
             return None
-        return self.laser.source.wait(period)
+        # the loop steps on each scan; a wait longer than a scan period (but well inside the watchdog's 0.5 s
+        # and the firmware's link timeout) only returns empty when the laser is late
+        return self.laser.source.wait(max(period, LASER_WAIT_S))
 
     # ---- the command -------------------------------------------------------------------------------------
     def _send(self, cmd: DriveCommand) -> None:
@@ -369,6 +375,8 @@ class RobotRun:
             self.say(d.event)
             if self.outputs is not None:
                 self.outputs.text(t, d.event, "WARN" if d.hold else "INFO")
+        if d.command is None and d.idle == "no new scan":  # the last setpoint stands until the next scan
+            return
         if d.command is None:  # no odometry: hold the robot (stop setpoints also keep the firmware's link alive)
             if not self._blind:
                 self._blind = True

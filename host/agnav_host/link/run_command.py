@@ -465,6 +465,7 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
                                for f in feeds],
                     "laser_to_command": lat, "scan_to_loop": latency_summary(outcome.wait_s),
                     "controller_step": latency_summary(outcome.step_s),
+                    "controller_events": [[round(float(t), 3), str(e)] for t, e in getattr(ctrl, "events", [])][-500:],
                     "latency_s": [round(v, 6) for v in outcome.latency_s]}
             try:
                 for p in outputs.finish(settings, outcome, info, plot=not ns.no_plot):

@@ -61,6 +61,9 @@ def _param(text: str) -> tuple[str, int]:
                       "help": "write the truth of the run here when it stops: truth.csv, summary.json, run_info.json"}),
         (("--stop-at-end",), {"dest": "stop_at_end", "action": "store_true",
                               "help": "stop serving once the robot arrives, collides or falls into a hole"}),
+        (("--movers-wait",), {"dest": "movers_wait", "action": "store_true",
+                              "help": "the scenario's walkers start when the host first drives (its first setpoint), "
+                                      "not when serving begins: the same encounter as in `agnav sim`"}),
         (("--host-config",), {"dest": "host_config", "default": None, "metavar": "FILE",
                               "help": "write a host config for `agnav run --config FILE`: the scenario's robot, field "
                                       "and the emulated lasers"}),
@@ -112,7 +115,8 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
     try:
         res = serve(sc, ServeOptions(tcp=tcp, pty=ns.pty, speedup=ns.speedup, duration_s=ns.duration, seed=ns.seed,
                                      tlog_path=ns.tlog, config=cfg, lasers=lasers, out_dir=ns.out,
-                                     stop_at_end=ns.stop_at_end, host_config=ns.host_config))
+                                     stop_at_end=ns.stop_at_end, host_config=ns.host_config,
+                                     movers_wait=ns.movers_wait))
     except (SilBuildError, ValueError, OSError) as e:
         where = f"{e.filename}: " if isinstance(e, OSError) and e.filename else ""
         print(f"agnav sil: {where}{getattr(e, 'strerror', None) or e}", file=sys.stderr)

@@ -98,7 +98,7 @@ def run_robot_path(sc: Scenario, planner: str, out: str | Path, lasers: tuple[st
 
     sil_cmd = _AGNAV + ["sil", sc.name, "--tcp", f"tcp:127.0.0.1:{port}",
                         "--laser", served(lasers[0]), "--host-config", str(hc), "--out", str(out / "truth"),
-                        "--stop-at-end", "--duration", f"{dur + 5.0:g}", "--seed", str(seed)]
+                        "--stop-at-end", "--movers-wait", "--duration", f"{dur + 5.0:g}", "--seed", str(seed)]
     if len(lasers) > 1:
         sil_cmd += ["--tilted-laser", served(lasers[1])]
     env = dict(os.environ, PYTHONUNBUFFERED="1")

@@ -168,6 +168,7 @@ class ServeOptions:
     out_dir: str | None = None  # the truth of the run: truth.csv, summary.json, run_info.json
     stop_at_end: bool = False  # stop serving once the referee ends the run (arrived, collision, fell in a hole)
     host_config: str | None = None  # write the robot side's host config (robot, field, lasers) here
+    movers_wait: bool = False  # the scenario's walkers wait at their first waypoint until the host drives
 
 
 def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m: print(m, file=sys.stderr),
@@ -276,6 +277,12 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
 
         s.on_downlink = to_clients
         referee_said = [False]
+        held = list(sc.world.movers) if opt.movers_wait else []
+        if held:  # the walkers' scripts start when the host does, as in a scenario run (not when serving began)
+            from dataclasses import replace as _replace
+
+            sc.world.movers[:] = [_replace(m, start_s=math.inf) for m in held]
+            log(f"agnav sil: {len(held)} walkers wait until the host's first setpoint")
         wall0 = time.monotonic()
         t0 = s.t_us
         end_us = None if opt.duration_s is None else t0 + int(opt.duration_s * 1e6)
@@ -310,6 +317,12 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                         elif data:
                             s.up.send(s.t_us, data)
                 s.step()
+                if held:
+                    st = s.host.status
+                    if st is not None and st.layer == 5 and st.reason == 12:  # HOST_COMMAND on a host setpoint
+                        sc.world.movers[:] = [_replace(m, start_s=m.start_s + s.t_s) for m in held]
+                        log(f"agnav sil: the host drives from t = {s.t_s:.2f} s: the walkers start")
+                        held = []
                 for x in scanners:
                     x.tick(s)
                 r = s.plant.robot
