@@ -10,8 +10,10 @@ referee's goal index in a scenario) and, in this order:
    faulty laser holds the robot (a zero command with the reason, said once per fault) until it is healthy;
 3. **observes**: the scan placed in the world with the planned pose and the laser's mounting pose, the tilted
    scan the same way, the sonar ring for a controller that reads it, the goals and the goal index;
-4. **steps the controller** (a registry controller with its guards: the ground and mover guards wrap it, the
-   obstacle tracker runs inside the mover guard and the timed planner);
+4. **steps the controller**, a registry controller with its guards (the ground and mover guards wrap it; the
+   obstacle tracker runs inside the mover guard and the timed planner). With a laser mounted it steps on a new
+   scan only: a step without one runs the watchdog and leaves the last command standing, so that no controller
+   takes a missing scan for an empty field;
 5. returns a :class:`Decision` (the command or the hold and why) for the entry point to send: the simulator
    moves its robot model with it, the SIL and ``agnav run`` turn it into the firmware's setpoint with
    :func:`firmware_setpoint` and send it over the link.
