@@ -505,7 +505,7 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False
     holes mapped with the firmware's odometry and the SIL host's goal-seeking parameters."""
     from agnav_host.perception import GroundGuard, GroundGuardParams
     from agnav_host.sil.session import PlannerHost, run_sil_scenario
-    from agnav_host.sim.controller import make_standin
+    from agnav_host.sim.controller import GoalSeek
     from agnav_host.sim.runner import _standin_params, run_scenario
 
     sc = load_scenario("hole_field")
@@ -517,11 +517,11 @@ def bench_hole_field(seeds: tuple[int, ...] = (0, 1, 2, 3, 4), sil: bool = False
         gp = GroundGuardParams(tl.perception_mount())
         if sil:
             plain = run_sil_scenario(sc, "goal_seek", seed=seed).run
-            guard = GroundGuard(make_standin("goal_seek", PlannerHost.planner_params(sc)), gp)
+            guard = GroundGuard(GoalSeek(PlannerHost.planner_params(sc)), gp)
             res = run_sil_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard).run
         else:
             plain = run_scenario(sc, "goal_seek", seed=seed)
-            guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)), gp)
+            guard = GroundGuard(GoalSeek(_standin_params(sc)), gp)
             res = run_scenario(sc, "goal_seek+ground_guard", seed=seed, controller=guard)
         tr = res.trajectory
         clear = [disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], r, h) for h in sc.world.holes]

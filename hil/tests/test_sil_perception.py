@@ -12,7 +12,7 @@ from agnav_host.perception import GroundGuard, GroundGuardParams, RutFollower, R
 from agnav_host.sil import run_sil_scenario
 from agnav_host.sil.session import PlannerHost
 from agnav_host.sim import load_scenario
-from agnav_host.sim.controller import make_standin
+from agnav_host.sim.controller import GoalSeek
 from agnav_host.sim.metrics import disc_clearance_to_hole_m, signed_offset_m
 from agnav_host.types import DriveCommand, Observation
 
@@ -42,7 +42,7 @@ def test_ground_guard_on_firmware_odometry_steers_round_holes_the_plain_planner_
     the tilted laser, mapped with the firmware's odometry) it arrives with the disc clear of every rim."""
     sc = load_scenario("hole_field")
     plain = run_sil_scenario(sc, "goal_seek", seed=1)
-    guard = GroundGuard(make_standin("goal_seek", PlannerHost.planner_params(sc)), GroundGuardParams(_mount(sc)))
+    guard = GroundGuard(GoalSeek(PlannerHost.planner_params(sc)), GroundGuardParams(_mount(sc)))
     res = run_sil_scenario(sc, "goal_seek+ground_guard", seed=1, controller=guard)
     tr = res.run.trajectory
     gaps = [disc_clearance_to_hole_m(tr[:, 1], tr[:, 2], sc.robot_params.radius_m, h) for h in sc.world.holes]

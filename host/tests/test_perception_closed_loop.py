@@ -16,7 +16,7 @@ from agnav_host.perception import (
     detect_ground_obstacles,
     scan_with_virtual_obstacles,
 )
-from agnav_host.sim.controller import make_standin
+from agnav_host.sim.controller import GoalSeek
 from agnav_host.sim.runner import _standin_params, run_scenario
 from agnav_host.sim.scenario import Scenario, load_scenario
 from agnav_host.sim.sensors import TiltedLaser, laser_preset
@@ -101,7 +101,7 @@ def test_hole_field_without_the_tilted_laser_falls_into_the_first_hole():
 
 def test_ground_guard_drives_round_every_hole_to_the_goal():
     sc = load_scenario("hole_field")
-    guard = GroundGuard(make_standin("goal_seek", _standin_params(sc)), GroundGuardParams(_mount(sc)))
+    guard = GroundGuard(GoalSeek(_standin_params(sc)), GroundGuardParams(_mount(sc)))
     res = run_scenario(sc, "goal_seek+ground_guard", seed=0, controller=guard)
     assert res.end_reason == "arrived"
     assert guard.detections > 0

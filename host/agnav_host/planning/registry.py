@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["PLANNERS", "PlannerEntry", "planner_names", "make_planner", "canonical_name", "describe", "sensors_needed",
            "CONTROLLERS", "ControllerEntry", "WRAPPERS", "FieldDescription", "ControllerContext", "ControllerError",
-           "controller_names", "split_controller_name", "make_controller", "controller_kind", "parse_turn_pattern",
+           "controller_names", "split_controller_name", "make_controller", "parse_turn_pattern",
            "ROW_SIDES"]
 
 
@@ -218,11 +218,6 @@ def split_controller_name(name: str) -> tuple[str, tuple[str, ...]]:
             raise UnknownPlanner(f"unknown wrapper {'+' + w!r} in {name!r}; known: {', '.join('+' + k for k in WRAPPERS)}")
         wraps.append(wn)
     return base, tuple(wraps)
-
-
-def controller_kind(name: str) -> str:
-    """``planner``, ``field`` or ``stand-in`` for the base of ``name``."""
-    return CONTROLLERS[split_controller_name(name)[0]].kind
 
 
 def _drive_limits(spec: RobotSpec) -> Any:

@@ -335,17 +335,20 @@ class PlannerHost:
         from ..hostloop import OdometryReport, SensorFrame
 
         o = s.host.odometry
+        if o is None:  # no odometry yet: no pose, and no laser read
+            return SensorFrame(s.t_s, None, sonar=self.sonar_frame(s) if self.uses_sonar else None,
+                               goal_index=self.goal_index)
         report = None
-        if o is not None and o.time_boot_ms != self._odo_stamp_ms:
+        if o.time_boot_ms != self._odo_stamp_ms:
             self._odo_stamp_ms = o.time_boot_ms
             report = OdometryReport(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
         tl = self.sc.tilted_laser
         return SensorFrame(
-            s.t_s, s.believed_pose(), o.speed_m_s if o is not None else 0.0, o.yaw_rate_rad_s if o is not None else 0.0,
-            odometry=report, scan=self._read_laser(s) if self.sc.laser is not None and o is not None else None,
-            tilted_scan=tl.scan(s.plant.world, s.pose, s.t_s, s.rng_tilted) if self.uses_tilted and tl is not None and o is not None else None,
+            s.t_s, s.believed_pose(), o.speed_m_s, o.yaw_rate_rad_s, odometry=report,
+            scan=self._read_laser(s) if self.sc.laser is not None else None,
+            tilted_scan=tl.scan(s.plant.world, s.pose, s.t_s, s.rng_tilted) if self.uses_tilted and tl is not None else None,
             sonar=self.sonar_frame(s) if self.uses_sonar else None, goal_index=self.goal_index,
-            extras=self.observation_extras(s) if self.observation_extras is not None and o is not None else None)
+            extras=self.observation_extras(s) if self.observation_extras is not None else None)
 
     def __call__(self, s: SilSession, t_us: int) -> None:
         h = s.host

@@ -12,7 +12,7 @@ Deterministic for a given seed. Public surface::
 """
 
 from ._raycast import cast_rays, cast_rays_at
-from .controller import STANDINS, GoalSeek, GoalSeekParams, make_standin
+from .controller import GoalSeek, GoalSeekParams
 from .metrics import SUMMARY_KEYS, RunMetrics, bending_energy, path_length_m
 from .robots import Ackermann, AckermannParams, DiffDrive, DiffDriveParams, integrate_arc
 from .runner import RunResult, run_scenario, write_outputs
@@ -29,7 +29,7 @@ from .sensors import LASER_PRESETS, EncoderSpec, Laser2D, LaserSpec, SonarRing, 
 from .world import Hole, Mover, Rut, Step, World
 
 __all__ = [
-    "cast_rays", "cast_rays_at", "STANDINS", "GoalSeek", "GoalSeekParams", "make_standin", "SUMMARY_KEYS",
+    "cast_rays", "cast_rays_at", "GoalSeek", "GoalSeekParams", "SUMMARY_KEYS",
     "RunMetrics", "bending_energy", "path_length_m", "Ackermann", "AckermannParams", "DiffDrive", "DiffDriveParams",
     "integrate_arc", "RunResult", "run_scenario", "write_outputs", "DEFAULT_SCENARIO", "Scenario", "ScenarioError",
     "builtin_descriptions", "builtin_names", "load_scenario", "parse_scenario", "LASER_PRESETS", "EncoderSpec",

@@ -1,22 +1,22 @@
 """Idealised firmware stand-ins: simple controllers that let a scenario run end to end.
 
 They take an :class:`~agnav_host.types.Observation` and return a :class:`~agnav_host.types.DriveCommand`,
-the same shape the host planners use, and are chosen by name through :data:`STANDINS`. The real
-planners (FLB, HIM, VFH, ...) live in ``agnav_host.planning`` and will be selectable the same way.
+the same shape the host planners use; the controller registry (``agnav_host.planning.registry``) builds the
+stand-in ``goal_seek`` by name beside the planners and field controllers.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from ..types import DriveCommand, Observation, norm_angle_rad
 from ..planning.base import free_distances_m  # one implementation for stand-ins and planners
 
-__all__ = ["Controller", "GoalSeekParams", "GoalSeek", "STANDINS", "make_standin", "free_distances_m", "turn_circle_speed_m_s"]
+__all__ = ["Controller", "GoalSeekParams", "GoalSeek", "free_distances_m", "turn_circle_speed_m_s"]
 
 
 class Controller(Protocol):
@@ -133,16 +133,3 @@ def turn_circle_speed_m_s(max_yaw_rate_rad_s: float, d_goal_m: float, bearing_ra
         return math.inf
     return max_yaw_rate_rad_s * d_goal_m / (2.0 * s)
 
-
-STANDINS: dict[str, Callable[[GoalSeekParams], Controller]] = {
-    "goal_seek": GoalSeek,
-}
-
-
-def make_standin(name: str, params: GoalSeekParams) -> Controller:
-    """Build a stand-in controller by name; ValueError lists the known names on a miss."""
-    try:
-        factory = STANDINS[name]
-    except KeyError:
-        raise ValueError(f"unknown planner {name!r}; known: {', '.join(sorted(STANDINS))}") from None
-    return factory(params)

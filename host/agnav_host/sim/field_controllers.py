@@ -32,18 +32,12 @@ from ..planning.registry import (
 from .controller import Controller
 from .scenario import Scenario
 
-__all__ = ["FieldControllerError", "field_controller_names", "is_field_controller", "field_from_meta",
-           "scenario_context", "make_scenario_controller", "GUARD_SUFFIX"]
-
-GUARD_SUFFIX = "+ground-guard"
+__all__ = ["FieldControllerError", "is_field_controller", "field_from_meta", "scenario_context",
+           "make_scenario_controller"]
 
 
 class FieldControllerError(ControllerError):
     """The scenario cannot run the named controller (the message says why)."""
-
-
-def field_controller_names() -> list[str]:
-    return [n for n, e in CONTROLLERS.items() if e.kind == "field"]
 
 
 def is_field_controller(name: str) -> bool:
@@ -85,13 +79,14 @@ def field_from_meta(sc: Scenario) -> FieldDescription:
                             first_turn=turn, lanes_per_turn=lanes)
 
 
-def scenario_context(sc: Scenario, standin: Any = None) -> ControllerContext:
-    """The registry's context for a run of ``sc``: its robot (``sim.runner.robot_spec``), field, laser mounts and
-    ``[meta.planner_params]``; ``standin``: the stand-in's gains (None: from the robot)."""
+def scenario_context(sc: Scenario, standin: Any = None, field: FieldDescription | None = None) -> ControllerContext:
+    """The registry's context for a run of ``sc``: its robot (``sim.runner.robot_spec``), field (``field``, else
+    :func:`field_from_meta`), laser mounts and ``[meta.planner_params]``; ``standin``: the stand-in's gains (None:
+    from the robot)."""
     from .runner import robot_spec
 
     table = sc.meta.get("planner_params", {})
-    return ControllerContext(spec=robot_spec(sc), field=field_from_meta(sc),
+    return ControllerContext(spec=robot_spec(sc), field=field if field is not None else field_from_meta(sc),
                              laser_mount=sc.laser.mount if sc.laser is not None else None,
                              tilted=sc.tilted_laser.perception_mount() if sc.tilted_laser is not None else None,
                              params=table if isinstance(table, dict) else {}, standin=standin,
@@ -103,20 +98,14 @@ def make_scenario_controller(sc: Scenario, name: str, standin: Any = None) -> Co
     scenario lacks what it needs)."""
     base, wraps = split_controller_name(name)
     need = sensors_needed(name)
-    if CONTROLLERS[base].kind == "field" or wraps:
+    fielded = CONTROLLERS[base].kind == "field" or bool(wraps)
+    if fielded:
         if "tilted_laser" in need and sc.tilted_laser is None:
             raise FieldControllerError(f"{name!r} needs a [tilted_laser] in the scenario; {sc.name!r} has none")
         if CONTROLLERS[base].kind == "field" and "laser" in need and sc.laser is None:
             raise FieldControllerError(f"{name!r} needs a [laser] in the scenario; {sc.name!r} has none")
-        ctx = scenario_context(sc, standin)
-    else:  # planners and the stand-in: a bad [meta] field entry is no concern of theirs
-        from .runner import robot_spec
-
-        table = sc.meta.get("planner_params", {})
-        ctx = ControllerContext(spec=robot_spec(sc), laser_mount=sc.laser.mount if sc.laser is not None else None,
-                                tilted=sc.tilted_laser.perception_mount() if sc.tilted_laser is not None else None,
-                                params=table if isinstance(table, dict) else {}, standin=standin,
-                                where=f"scenario {sc.name!r}")
+    # planners and the stand-in: a bad [meta] field entry is no concern of theirs
+    ctx = scenario_context(sc, standin, None if fielded else FieldDescription())
     try:
         return make_controller(name, ctx)
     except ControllerError as e:
