@@ -182,6 +182,8 @@ class HostLoop:
         ex["goal_index"] = self.goal_index
         if "tilted_laser" in self.needs and f.tilted_scan is not None and self.tilted_mount is not None:
             ex["tilted_scan"] = replace(f.tilted_scan, pose=pose.compose(self.tilted_mount))
+        else:  # no new tilted scan this step: an earlier one must not be taken in again at today's pose
+            ex.pop("tilted_scan", None)
         if f.extras:
             ex.update(f.extras)
         sonar = f.sonar if "sonar" in self.needs else None

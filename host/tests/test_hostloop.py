@@ -72,6 +72,16 @@ def test_on_a_robot_the_loop_judges_the_goals_itself():
     assert d.arrived and d.command == DriveCommand() and "goal reached" in d.event
 
 
+def test_a_tilted_scan_reaches_the_controller_once():
+    c = Recording()
+    c.uses_tilted_laser = True
+    loop = HostLoop(c, [Goal(5.0, 0.0)], laser_mount=Pose2D(), tilted_mount=Pose2D(0.3, 0.0, 0.0))
+    loop.step(SensorFrame(0.0, Pose2D(1.0, 0.0, 0.0), scan=_scan(0.0), tilted_scan=_scan(0.0, 1.0)))
+    assert c.seen[0].extras["tilted_scan"].pose == Pose2D(1.3, 0.0, 0.0)
+    loop.step(SensorFrame(0.07, Pose2D(1.1, 0.0, 0.0), scan=_scan(0.07)))
+    assert "tilted_scan" not in c.seen[1].extras
+
+
 def test_no_pose_no_command():
     d = HostLoop(Recording(), [Goal(1.0, 0.0)]).step(SensorFrame(0.0, None))
     assert d.command is None and d.idle == "no pose yet"
