@@ -1,8 +1,11 @@
 """AVR SIL benchmark: speed of the real ATmega2560 ELF under libsimavr (build/sil/libagnav_avr_sil.so)
 against real time, alone and in lock step, compared with the native SIL.
 
-Run: .venv/bin/python bench/bench_avr_sil.py [--busy-elf PATH] [--seconds S]
+Run: .venv/bin/python bench/bench_avr_sil.py [--busy-elf PATH] [--seconds S] [--elf PATH] [--lib-dir DIR]
      (prints a markdown table; numbers depend on the machine and its load)
+     --elf: the AVR ELF to measure (default: `pio run -e megaatmega2560`, copied to build/sil/);
+     --lib-dir: build libagnav_sil.so and libagnav_avr_sil.so in DIR instead of build/sil/
+     (with --elf, nothing is written to build/sil/).
 
 1. firmware alone: S simulated seconds, no host, every sonar trigger answered with a 1.5 m echo
    (so the ring and its interrupts run), stop-on-trigger as in lock step;
@@ -30,7 +33,18 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def fw_alone(backend: str, seconds: float, elf: str | None) -> dict[str, float]:
+def _use_libs(libs: dict[str, str] | None) -> None:
+    """Point the binding's on-demand library builds at the given files ({"native": path, "avr": path})."""
+    if not libs:
+        return
+    from agnav_host.sil import avr_build, binding
+
+    binding.build_library = lambda *a, **k: Path(libs["native"])
+    avr_build.build_avr_library = lambda *a, **k: Path(libs["avr"])
+
+
+def fw_alone(backend: str, seconds: float, elf: str | None, libs: dict[str, str] | None = None) -> dict[str, float]:
+    _use_libs(libs)
     from agnav_host.sil import Firmware
 
     width = round(2 * 1.5 / 343.0 * 1e6)
@@ -49,12 +63,13 @@ def fw_alone(backend: str, seconds: float, elf: str | None) -> dict[str, float]:
         return {"sim": seconds, "wall": wall, "cpu": cpu, "instr": instr, "resets": fw.resets}
 
 
-def lock_step(backend: str, seconds: float, elf: str | None) -> dict[str, float]:
+def lock_step(backend: str, seconds: float, elf: str | None, libs: dict[str, str] | None = None) -> dict[str, float]:
+    _use_libs(libs)
     from agnav_host.sil import SilConfig, SilSession
     from agnav_host.sim import load_scenario
 
     sys.path.insert(0, str(REPO / "hil" / "tests"))
-    from test_avr_sil import PurePursuit  # the scenario tests' host
+    from _sil_logic import PurePursuit  # the scenario tests' host
 
     sc = load_scenario(str(REPO / "hil/tests/scenarios/open_field.toml"))
     s = SilSession(sc, 0, SilConfig(firmware=backend, firmware_elf=elf), PurePursuit())
@@ -71,10 +86,11 @@ def lock_step(backend: str, seconds: float, elf: str | None) -> dict[str, float]
         s.close()
 
 
-def run_child(kind: str, backend: str, seconds: float, elf: str | None, env: dict[str, str]) -> dict[str, float]:
+def run_child(kind: str, backend: str, seconds: float, elf: str | None, env: dict[str, str],
+              libs: dict[str, str] | None = None) -> dict[str, float]:
     """Each measurement in its own process (fresh library copies, env knobs apply at load)."""
     code = (f"import sys, json; sys.path.insert(0, {str(REPO / 'bench')!r}); import bench_avr_sil as b; "
-            f"print(json.dumps(b.{kind}({backend!r}, {seconds!r}, {elf!r})))")
+            f"print(json.dumps(b.{kind}({backend!r}, {seconds!r}, {elf!r}, {libs!r})))")
     r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, env={**os.environ, **env})
     if r.returncode != 0:
         raise RuntimeError(r.stderr)
@@ -87,12 +103,21 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--busy-elf", default=None, help="an AVR ELF without idle sleep, for comparison")
     ap.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per measurement (default 20)")
+    ap.add_argument("--elf", default=None,
+                    help="the AVR ELF to measure (default: the PlatformIO build, rebuilt when stale)")
+    ap.add_argument("--lib-dir", default=None, help="build the two SIL libraries here instead of build/sil/")
     ns = ap.parse_args()
     from agnav_host.sil import build_avr_elf, build_avr_library, build_library
 
-    build_library()
-    build_avr_library()
-    elf = str(build_avr_elf())
+    libs = None
+    if ns.lib_dir:
+        d = Path(ns.lib_dir)
+        libs = {"native": str(build_library(d / "libagnav_sil.so")),
+                "avr": str(build_avr_library(d / "libagnav_avr_sil.so"))}
+    else:
+        build_library()
+        build_avr_library()
+    elf = ns.elf or str(build_avr_elf())
     rows = [("native SIL", "native", None, {}), ("AVR SIL, idle-sleep ELF (HEAD)", "avr", elf, {})]
     if ns.busy_elf:
         rows += [("AVR SIL, busy-loop ELF", "avr", ns.busy_elf, {}),
@@ -106,7 +131,7 @@ def main() -> int:
                            ("lock_step", "lock step, open_field pure pursuit, 10 ms world step")):
             if kind == "lock_step" and env:
                 continue
-            r = run_child(kind, backend, ns.seconds, e, env)
+            r = run_child(kind, backend, ns.seconds, e, env, libs)
             note = []
             if r.get("instr"):
                 note.append(f"{r['instr'] / r['cpu'] / 1e6:.1f} M AVR instr / CPU s, "

@@ -47,10 +47,20 @@ class Heartbeats:
 
 
 class PurePursuit:
-    """Host logic: pure pursuit at 15 Hz on the firmware's odometry to the scenario's first goal."""
+    """Host logic: pure pursuit at 15 Hz on the firmware's odometry to the scenario's first goal.
+
+    Once the odometry is within ``STOP_M`` of the goal the host commands a stop (speed 0, steering
+    centred) and keeps it while the odometry stays within the goal's tolerance. Braking from the
+    approach speed (0.2 + d m/s) and the loop's delays (100 ms odometry period, 66 ms host period,
+    link and 20 ms control tick) carry the robot some centimetres past the point where the stop
+    was decided, sometimes past ``STOP_M``; driving on from there at >= 0.2 m/s with a lookahead of
+    at least 0.3 m would circle the goal instead of reaching it."""
+
+    STOP_M = 0.05
 
     def __init__(self) -> None:
         self.next = 0
+        self.stopped = False
 
     def __call__(self, s: SilSession, t_us: int) -> None:
         if t_us < self.next:
@@ -63,6 +73,13 @@ class PurePursuit:
         g = s.sc.goals[0]
         dx, dy = g.x_m - pose.x_m, g.y_m - pose.y_m
         d = math.hypot(dx, dy)
+        if d < self.STOP_M:
+            self.stopped = True
+        elif d > g.tolerance_m:
+            self.stopped = False
+        if self.stopped:
+            s.host.setpoint_si(0.0, 0.0)
+            return
         alpha = (math.atan2(dy, dx) - pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi
         steer = math.atan2(2.0 * s.sc.robot_params.track_m * math.sin(alpha), max(d, 0.3))
-        s.host.setpoint_si(steer, 0.0 if d < 0.05 else min(0.4, 0.2 + d))
+        s.host.setpoint_si(steer, min(0.4, 0.2 + d))

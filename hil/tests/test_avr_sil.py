@@ -31,18 +31,25 @@ REPO = HERE.parents[1]
 
 LAYER_FAILSAFE, LAYER_AVOID, LAYER_FOLLOW_WALL = 1, 2, 4
 REASON_LINK_LOSS, REASON_STOP, REASON_BACKOFF, REASON_WAIT = 2, 5, 6, 7
-UART_BYTE_US = 170.0  # 10 bits at UBRR0 = 33, U2X0: 16 MHz / 8 / 34 = 58.8 kbit/s
+UART_BYTE_US = 175.0  # 10 bits at UBRR0 = 34, U2X0: 16 MHz / 8 / 35 = 57.1 kbit/s
+EEPROM_WRITE_US = 3296  # per byte programmed (hil/simavr/avr_board_model.h, datasheet Table 8-1)
 
 
 def session(name: str, logic, backend: str = "avr", start: Pose2D | None = None, exact_sonar: bool = False,
-            **cfg) -> SilSession:
+            instant_eeprom: bool = False, **cfg) -> SilSession:
+    """instant_eeprom: the AVR's provisioning save runs with simavr's own EEPROM (no programming
+    time), so the run starts in the state the native firmware starts in."""
     sc = load_scenario(str(SCEN / f"{name}.toml"))
     if start is not None:
         sc = replace(sc, start=start)
     if exact_sonar:  # no range noise, drop-outs or cross-talk: only the firmware differs between runs
         sc = replace(sc, sonar=SonarRing(replace(sc.sonar.spec, range_std_m=0.0, dropout_prob=0.0, crosstalk_prob=0.0)))
     s = SilSession(sc, 0, SilConfig(firmware=backend, **cfg), logic)
+    if instant_eeprom and backend == "avr":
+        s.fw._lib.sil_avr_set_eeprom_write_us(0)
     s.provision()
+    if instant_eeprom and backend == "avr":
+        s.fw._lib.sil_avr_set_eeprom_write_us(EEPROM_WRITE_US)
     return s
 
 
@@ -108,7 +115,8 @@ def test_avr_param_table_and_eeprom_record_match_native():
         h.param_set("LINK_TIMEOUT_MS", 1234)
         h.command_long(245, 1)
         fw.uart_write(h.take_tx())
-        h.feed(fw.time_us, run(fw, 300_000))
+        # the ack follows the save: rec_len bytes programmed at EEPROM_WRITE_US each (0.56 s)
+        h.feed(fw.time_us, run(fw, 300_000 + rec_len * EEPROM_WRITE_US))
         assert fw.param_get("LINK_TIMEOUT_MS") == 1234, "PARAM_SET over UART0 did not reach the variable"
         assert [a.result for a in h.acks if a.command == 245] == [0], h.acks
         nat.param_set("LINK_TIMEOUT_MS", 1234)
@@ -216,6 +224,43 @@ def test_avr_drive_to_waypoint():
         s.close()
 
 
+def _waypoint_after_20_s(backend: str, host_phase_ms: int) -> dict[str, float]:
+    """open_field with the pure-pursuit host on the 66 ms grid through host_phase_ms of the session
+    clock (0: the benchmark's run), 20 s after provisioning: distance to the goal at 17 s and at
+    20 s, robot speed at 20 s, the goal's tolerance, resets and late events."""
+    logic = PurePursuit()
+    s = session("open_field", logic, backend=backend)
+    try:
+        logic.next = host_phase_ms * 1000
+        g = s.sc.goals[0]
+        s.run_for(17.0)
+        err_17 = math.hypot(g.x_m - s.pose.x_m, g.y_m - s.pose.y_m)
+        s.run_for(3.0)
+        return {"err": math.hypot(g.x_m - s.pose.x_m, g.y_m - s.pose.y_m), "err_17": err_17,
+                "speed": s.plant.robot.speed_m_s, "tol": g.tolerance_m, "resets": s.fw.resets,
+                "late": s.fw.late_events}
+    finally:
+        s.close()
+
+
+@pytest.mark.parametrize("host_phase_ms", [0, 16, 33, 49])
+def test_avr_drive_to_waypoint_and_stay_20_s(host_phase_ms):
+    """The lock-step run of bench/bench_avr_sil.py (open_field, 15 Hz pure pursuit, 20 s) with the
+    host's 66 ms period at four phases, a quarter period apart, against the firmware's 100 ms
+    odometry and 20 ms control tick: on the AVR the robot is at rest at the waypoint at 17 s and
+    at 20 s, within the goal's tolerance (0.15 m, as test_sil_scenarios.test_drive_to_waypoint
+    asks of the native SIL), and within 5 cm of where the native SIL ends with the same phase."""
+    a = _waypoint_after_20_s("avr", host_phase_ms)
+    n = _waypoint_after_20_s("native", host_phase_ms)
+    assert a["err"] <= a["tol"] and a["err_17"] <= a["tol"], \
+        f"AVR ended {a['err']:.3f} m from the waypoint at 20 s ({a['err_17']:.3f} m at 17 s; native {n['err']:.3f} m)"
+    assert abs(a["speed"]) < 0.01 and abs(a["err"] - a["err_17"]) < 0.005, \
+        f"AVR robot still moving at 20 s ({a['speed']:.3f} m/s, {a['err_17']:.3f} -> {a['err']:.3f} m from the goal)"
+    assert abs(a["err"] - n["err"]) <= 0.05, \
+        f"distance to the waypoint at 20 s: avr {a['err']:.3f} m, native {n['err']:.3f} m"
+    assert a["resets"] == 0 and a["late"] == 0, a
+
+
 def test_avr_link_loss_stops_within_timeout():
     """Setpoints at 10 Hz, then the uplink is cut: outputs go neutral LINK_TIMEOUT_MS (500) + one
     control tick (20 ms) after the last frame was *received by the firmware*: on the AVR that is
@@ -277,10 +322,10 @@ def test_avr_follow_wall_down_corridor():
     assert abs(dist - dist_n) <= 0.05, f"distance in 10 s: avr {dist:.3f} m, native {dist_n:.3f} m"
 
 
-def _obstacle_run(backend: str, exact_sonar: bool = False) -> dict[str, float]:
+def _obstacle_run(backend: str, exact_sonar: bool = False, instant_eeprom: bool = False) -> dict[str, float]:
     """wall_ahead with the robot 1.6 m from the wall, host insisting on 0.4 m/s straight."""
     s = session("wall_ahead", Heartbeats(0.1, (0, 400)), backend=backend, start=Pose2D(1.4, 0.0, 0.0),
-                exact_sonar=exact_sonar, world_dt_s=0.005)
+                exact_sonar=exact_sonar, instant_eeprom=instant_eeprom, world_dt_s=0.005)
     try:
         wall_x = 3.0
         rows: list[tuple[float, float, int]] = []
@@ -339,8 +384,12 @@ def test_native_and_avr_agree():
     distance after 1 s within 12 mm (0.4 m/s x (one 20 ms control tick + ~10 ms of USART)); the front range the
     host receives minus the true gap (the ring's filter + reporting lag) within 12 mm (30 ms at
     0.4 m/s); first STOP within one ring cycle + one control tick (120 ms: the stop decision is
-    taken once per ring cycle) and 0.4 m/s x 120 ms = 48 mm of gap; back-off within 1 cm."""
-    a, n = _obstacle_run("avr", exact_sonar=True), _obstacle_run("native", exact_sonar=True)
+    taken once per ring cycle) and 0.4 m/s x 120 ms = 48 mm of gap; back-off within 1 cm.
+    The AVR's provisioning save runs without EEPROM programming time: on the chip its ~200 bytes
+    hold the main loop for ~0.7 s (3.3 ms a byte), which the native SIL does not model, and the
+    sonar ring and link come out of that stall in another state (test_avr_uart_link.py measures
+    the stall)."""
+    a, n = _obstacle_run("avr", exact_sonar=True, instant_eeprom=True), _obstacle_run("native", exact_sonar=True)
     assert not math.isnan(a["stop_t"]) and not math.isnan(n["stop_t"]), (a, n)
     assert abs(a["x_1s"] - n["x_1s"]) <= 0.012, f"x after 1 s: avr {a['x_1s']:.3f} m, native {n['x_1s']:.3f} m"
     assert a["n_frames"] >= 15 and n["n_frames"] >= 15, (a["n_frames"], n["n_frames"])
