@@ -611,6 +611,9 @@ static void report_boot(hal_reset_cause_t cause)
         link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("boot: reset of unknown cause"));
         break;
     }
+    if (!hal_clock_from_crystal()) { /* serial bit rates and timings off by the RC oscillator's error */
+        link_send_statustext(MAV_SEVERITY_WARNING, LINK_TEXT("boot: no crystal, clock from HSI (+-1 %)"));
+    }
 }
 
 void agnav_setup(void)

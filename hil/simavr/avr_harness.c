@@ -29,7 +29,18 @@
  *                             it returns (interrupts inside included); repeatable; stats to stderr
  *   --isr-stats               cycles spent in the encoder interrupt (PCINT2 vector entry to
  *                             return) are measured; min/mean/max go to stderr at the end
- * At the end stderr gets "injected_edges=E0,E1,..." for the encoder check.
+ *   --host-baud B             the host side of UART0 runs at B baud (its nominal rate), the
+ *                             firmware at the rate its UBRR0/U2X0 give: every byte out (stdout) and
+ *                             in (--uart-inject-hex) is re-read with the receiver's bit sampling
+ *                             (avr_board_model.h); a byte the host loses is not printed. Default 0:
+ *                             the host follows the firmware's rate (unit tests: unity_output.c's
+ *                             setting is 117647 baud, no host rate is implied)
+ *   --eeprom-write-us U       EEPROM programming time per byte (default 3296, Table 8-1; 0: simavr's
+ *                             own, which completes a write at once)
+ * At the end stderr gets "injected_edges=E0,E1,..." for the encoder check,
+ * "uart_link host_baud=B to_host=N garbled=G framing=F to_avr=N garbled=G framing=F" with
+ * --host-baud, and "eeprom_writes=N control_ticks=N control_gap_max_us=G" (the longest time
+ * between two control ticks, avr_board_model.h).
  */
 #include "avr_board_model.h"
 
@@ -83,12 +94,16 @@ static uint8_t g_inject[512];
 static unsigned g_inject_len;
 static double g_inject_hz;
 static avr_irq_t *g_uart_in;
+static avr_model_link_t g_link;
 
 static avr_cycle_count_t uart_inject(avr_t *avr, avr_cycle_count_t when, void *param)
 {
     (void)param;
     for (unsigned k = 0; k < g_inject_len; k++) {
-        avr_raise_irq(g_uart_in, g_inject[k]);
+        int v = avr_model_link_to_avr(&g_link, avr, g_inject[k]);
+        if (v >= 0) {
+            avr_raise_irq(g_uart_in, (uint32_t)v);
+        }
     }
     return when + (avr_cycle_count_t)((double)avr->frequency / g_inject_hz);
 }
@@ -204,11 +219,15 @@ static void on_uart_byte(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
     (void)param;
+    int v = avr_model_link_to_host(&g_link, g_avr, (uint8_t)value);
+    if (v < 0) {
+        return; /* the host saw no frame */
+    }
     if (g_timestamps) {
         uint64_t t_us = g_avr->cycle * 1000000ull / g_avr->frequency;
-        printf("%" PRIu64 " %02x\n", t_us, value & 0xffu);
+        printf("%" PRIu64 " %02x\n", t_us, (unsigned)v & 0xffu);
     } else {
-        putchar((int)(value & 0xffu));
+        putchar(v & 0xff);
     }
 }
 
@@ -216,7 +235,8 @@ static int usage(void)
 {
     fprintf(stderr, "usage: avr_harness [--mcu NAME] [--freq HZ] [--seconds S] [--timestamps]\n"
                     "                   [--enc-count N --enc-hz F [--enc-mirror] [--enc-aligned]] [--sonar-mm D] [--isr-stats]\n"
-                    "                   [--uart-inject-hex HEX --uart-inject-hz F] FIRMWARE.elf\n");
+                    "                   [--uart-inject-hex HEX --uart-inject-hz F] [--host-baud B] [--eeprom-write-us U]\n"
+                    "                   FIRMWARE.elf\n");
     return 2;
 }
 
@@ -226,6 +246,7 @@ int main(int argc, char **argv)
     const char *elf = NULL;
     unsigned long freq = 16000000ul;
     double seconds = 60.0;
+    uint32_t eeprom_write_us = AVR_MODEL_EEPROM_WRITE_US;
 
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--mcu") && i + 1 < argc) {
@@ -265,6 +286,10 @@ int main(int argc, char **argv)
             g_enc_aligned = 1;
         } else if (!strcmp(argv[i], "--isr-stats")) {
             g_isr_stats = 1;
+        } else if (!strcmp(argv[i], "--host-baud") && i + 1 < argc) {
+            g_link.host_baud = (uint32_t)strtoul(argv[++i], NULL, 10);
+        } else if (!strcmp(argv[i], "--eeprom-write-us") && i + 1 < argc) {
+            eeprom_write_us = (uint32_t)strtoul(argv[++i], NULL, 10);
         } else if (argv[i][0] == '-') {
             return usage();
         } else {
@@ -299,6 +324,7 @@ int main(int argc, char **argv)
     avr_init(g_avr);
     g_avr->log = 0;
     avr_model_fix(g_avr); /* simavr corrections shared with the SIL library (avr_board_model.h) */
+    avr_model_eeprom_timing(g_avr, eeprom_write_us);
     avr_load_firmware(g_avr, &fw);
     g_avr->frequency = freq;
 
@@ -408,6 +434,13 @@ int main(int argc, char **argv)
         }
         fprintf(stderr, "\n");
     }
+    if (g_link.host_baud != 0u) {
+        fprintf(stderr, "uart_link host_baud=%u to_host=%u garbled=%u framing=%u to_avr=%u garbled=%u framing=%u\n",
+                g_link.host_baud, g_link.to_host, g_link.to_host_garbled, g_link.to_host_framing, g_link.to_avr,
+                g_link.to_avr_garbled, g_link.to_avr_framing);
+    }
+    fprintf(stderr, "eeprom_writes=%u control_ticks=%u control_gap_max_us=%u\n", avr_model_eeprom_writes(),
+            avr_model_control_ticks(), avr_model_control_gap_max_us());
     fprintf(stderr, "sleep_fraction=%.3f sleep_steps=%llu\n", g_avr->cycle ? (double)g_sleep_cycles / (double)g_avr->cycle : 0.0,
             (unsigned long long)g_sleep_calls);
     if (g_isr_stats) {

@@ -27,9 +27,23 @@
  * UART0 is the link. Bytes written by sil_uart_write() wait in a queue and are fed to
  * simavr's receiver while its input FIFO has room (XOFF / FIFO full stops the feed; XON and a
  * one-byte-time pacing timer resume it: simavr 1.6 raises XON only on UCSR0A polls); simavr
- * then delivers them at the programmed byte time (UBRR0 = 33, U2X0: 10 bits x 34 x 8 cycles =
- * 170 us; set here because simavr computes it before U2X0 is written). Bytes the firmware puts
- * in UDR0 are captured in a ring for sil_uart_read().
+ * then delivers them at the programmed byte time (57600 baud: UBRR0 = 34, U2X0: 10 bits x 35 x 8
+ * cycles = 175 us; set here because simavr computes it before U2X0 is written). Bytes the
+ * firmware puts in UDR0 are captured in a ring for sil_uart_read().
+ * The host side runs at its nominal rate, sil_avr_set_host_baud() (default 57600; 0: it follows
+ * the firmware), the firmware at the one its UBRR0/U2X0 give: each byte in either direction is
+ * re-read with the receiving side's bit sampling (avr_board_model.h), so a rate off by more than
+ * the receiver tolerates garbles bytes (counted: sil_avr_uart_link_stats()); a framing error
+ * reaches the firmware as FE0. sil_avr_set_uart_divisor() overwrites UBRR0/U2X0 (a wrong divisor
+ * without rebuilding the ELF).
+ *
+ * EEPROM: a byte the firmware programs keeps EECR.EEPE set for 3.3 ms (Table 8-1;
+ * sil_avr_set_eeprom_write_us(), 0 = simavr's instant write), so a busy-wait on EEPE stalls the
+ * main loop as on the chip. sil_avr_eeprom_writes() counts the bytes programmed.
+ * sil_avr_control_gap_max_us() is the longest time between two control ticks (throttle /
+ * left-duty compare writes, avr_board_model.h), read and reset: "worst control period", e.g.
+ * during a save, where the watchdog kick gap (sil_kick_gap_max_us) shows nothing because
+ * hal_eeprom_write() kicks it per byte. sil_avr_control_ticks() counts the ticks.
  *
  * simavr 1.6 corrections, so the model behaves like the chip: TIFRn writes clear only the
  * flags written as 1 (simavr clears all: a Timer5 overflow pending under cli() was lost and the
@@ -137,7 +151,11 @@ static struct {
     uint8_t enc_fault[4], enc_ab[4], sonar_fault[12];
     uint64_t last_kick_cycle;
     uint32_t kick_gap_max_us;
+    avr_model_link_t link;   /* host side of UART0 and its byte counts */
 } S;
+
+static uint32_t g_host_baud = AVR_MODEL_HOST_BAUD_DEFAULT; /* kept across sil_init() */
+static uint32_t g_eeprom_write_us = AVR_MODEL_EEPROM_WRITE_US;
 
 static ev_t s_heap[SIL_EVENT_MAX];
 static avr_t *g_avr;
@@ -316,7 +334,10 @@ static void uart_pump(void)
         }
         uint8_t b = S.rxq[S.rx_tail & (UART_Q - 1u)];
         S.rx_tail++;
-        avr_raise_irq(g_uart_in, b);
+        int v = avr_model_link_to_avr(&S.link, g_avr, b);
+        if (v >= 0) {
+            avr_raise_irq(g_uart_in, (uint32_t)v);
+        }
     }
     if (S.rx_tail != S.rx_head && avr_cycle_timer_status(g_avr, uart_pace, NULL) == 0) {
         avr_cycle_count_t per = g_uart0 != NULL && g_uart0->cycles_per_byte ? g_uart0->cycles_per_byte : 2720u;
@@ -338,8 +359,12 @@ static void on_uart_out(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
     (void)param;
+    int v = avr_model_link_to_host(&S.link, g_avr, (uint8_t)value);
+    if (v < 0) {
+        return; /* the host saw no frame */
+    }
     if (S.tx_head - S.tx_tail < UART_Q) {
-        S.txq[S.tx_head & (UART_Q - 1u)] = (uint8_t)value;
+        S.txq[S.tx_head & (UART_Q - 1u)] = (uint8_t)v;
         S.tx_head++;
     } else {
         S.tx_lost++;
@@ -459,6 +484,7 @@ static void on_core_reset(struct avr_t *avr)
         g_mcu_reset(avr);
     }
     avr_model_no_level_poll(avr);
+    avr_model_eeprom_after_reset(avr);
 }
 
 /* ---- life cycle ----------------------------------------------------------------------------- */
@@ -467,6 +493,7 @@ uint32_t sil_api_version(void) { return SIL_API_VERSION; }
 void sil_init(void)
 {
     memset(&S, 0, sizeof S);
+    S.link.host_baud = g_host_baud;
     S.tick_us = 100u;
     S.stop_on_trigger = 1;
     avr_global_logger_set(quiet_logger);
@@ -519,6 +546,8 @@ void sil_init(void)
     }
     avr_model_no_level_poll(g_avr);
     avr_model_hook_tifr(g_avr);
+    avr_model_eeprom_timing(g_avr, g_eeprom_write_us);
+    avr_model_watch_control(g_avr);
     g_mcu_reset = g_avr->reset;
     g_avr->reset = on_core_reset;
     g_avr->data[REG_MCUSR] = 0x01u; /* PORF, as the chip after a power-on (simavr leaves 0) */
@@ -857,6 +886,49 @@ uint32_t sil_avr_log_errors(void) { return S.log_errors; }
 uint32_t sil_avr_resets(void) { return S.resets; }
 uint32_t sil_avr_uart_rx_pending(void) { return S.rx_head - S.rx_tail; }
 uint32_t sil_avr_uart_tx_lost(void) { return S.tx_lost; }
+
+void sil_avr_set_host_baud(uint32_t baud)
+{
+    g_host_baud = baud;
+    S.link.host_baud = baud;
+}
+
+uint32_t sil_avr_host_baud(void) { return S.link.host_baud; }
+
+/* out[6]: bytes to the host, of them garbled or lost, with a framing error; the same from the host. */
+void sil_avr_uart_link_stats(uint32_t *out)
+{
+    out[0] = S.link.to_host;
+    out[1] = S.link.to_host_garbled;
+    out[2] = S.link.to_host_framing;
+    out[3] = S.link.to_avr;
+    out[4] = S.link.to_avr_garbled;
+    out[5] = S.link.to_avr_framing;
+}
+
+/* UBRR0 (12 bits) and U2X0 as if the firmware had written them; the byte time follows. */
+void sil_avr_set_uart_divisor(uint32_t ubrr, int u2x)
+{
+    if (g_avr == NULL) {
+        return;
+    }
+    g_avr->data[0xC4] = (uint8_t)(ubrr & 0xFFu);
+    g_avr->data[0xC5] = (uint8_t)((ubrr >> 8) & 0x0Fu);
+    g_avr->data[0xC0] = (uint8_t)((g_avr->data[0xC0] & ~0x02u) | (u2x ? 0x02u : 0u));
+    uart_fix_baud();
+}
+
+void sil_avr_set_eeprom_write_us(uint32_t us)
+{
+    g_eeprom_write_us = us;
+    if (g_avr != NULL) {
+        avr_model_eeprom_timing(g_avr, us);
+    }
+}
+
+uint32_t sil_avr_eeprom_writes(void) { return avr_model_eeprom_writes(); }
+uint32_t sil_avr_control_ticks(void) { return avr_model_control_ticks(); }
+uint32_t sil_avr_control_gap_max_us(void) { return avr_model_control_gap_max_us(); }
 const char *sil_avr_elf(void) { return elf_path(); }
 
 /* ---- fault injection (sil_api.h; same semantics as the native SIL) ------------------------------- */

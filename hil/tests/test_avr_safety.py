@@ -37,8 +37,9 @@ def codec(key: bytes | None):
 
 
 def host_run(fw: Firmware, us: int, mav, echo: bool = False) -> list:
-    """Heartbeat + zero setpoint every 50 ms (a 20 Hz host), optional 2 m sonar echoes."""
-    out = []
+    """Heartbeat + zero setpoint every 50 ms (a 20 Hz host), optional 2 m sonar echoes. The bytes
+    are decoded as one stream: a frame split across two 50 ms reads stays whole."""
+    out = bytearray()
     end = fw.time_us + us
     seq = 0
     while fw.time_us < end:
@@ -50,8 +51,8 @@ def host_run(fw: Firmware, us: int, mav, echo: bool = False) -> list:
             if echo:
                 fw.queue_echo(idx, t + 200, 1)
                 fw.queue_echo(idx, t + 11_862, 0)
-        out += decode(fw.uart_read())
-    return out
+        out += fw.uart_read()
+    return decode(bytes(out))
 
 
 @pytest.mark.parametrize("signed", [False, True])
@@ -81,7 +82,9 @@ def test_signed_avr_refuses_unsigned_commands():
         host_run(fw, 300_000, codec(KEY))
         fw.uart_write(D.MAVLink_command_long_message(1, 1, D.MAV_CMD_AGNAV_ESTOP, 0, 1, 0, 0, 0, 0, 0, 0)
                       .pack(codec(None)))
-        msgs = host_run(fw, 1_300_000, codec(KEY))
+        # SYS_STATUS is a 1 Hz message, sent later with signing: 3.3 s hold one whatever the phase
+        # (the key's EEPROM save, 40 bytes at 3.3 ms a byte, shifts it by 132 ms)
+        msgs = host_run(fw, 3_300_000, codec(KEY))
         assert not [m for m in msgs if m.get_type() == "COMMAND_ACK"], "unsigned command acted on"
         ss = [m for m in msgs if m.get_type() == "SYS_STATUS"][-1]
         assert ss.errors_count2 >= 1, f"unsigned frames counted: {ss.errors_count2}"

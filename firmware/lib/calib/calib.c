@@ -101,23 +101,25 @@ uint16_t calib_table_pwm(const calib_table_t *t, int32_t value)
         return t->neutral_pwm;
     }
     const calib_side_t *s = value > 0 ? &t->pos : &t->neg;
-    int32_t mag = abs32(value);
+    /* |value| as unsigned: defined for INT32_MIN too (2^31), where -value would overflow */
+    uint32_t mag = value < 0 ? 0u - (uint32_t)value : (uint32_t)value;
     if (s->n == 0u) {
         s = &t->pos; /* sign-magnitude: the output stage sets the direction */
         if (s->n == 0u) {
             return t->neutral_pwm;
         }
     }
-    if (mag < abs32(s->pt[0].value)) {
+    if (mag < (uint32_t)abs32(s->pt[0].value)) {
         return t->neutral_pwm; /* slower than the actuator can go: stop */
     }
     for (uint8_t i = 0; i + 1u < s->n; i++) {
         int32_t m0 = abs32(s->pt[i].value);
         int32_t m1 = abs32(s->pt[i + 1u].value);
-        if (mag < m1) {
+        if (mag < (uint32_t)m1) {
+            /* m0 <= mag < m1 <= 2^15 and |dp| < 2^16: the product stays below 2^31 */
             int32_t p0 = s->pt[i].pwm;
             int32_t dp = (int32_t)s->pt[i + 1u].pwm - p0;
-            return (uint16_t)(p0 + div_round(dp * (mag - m0), m1 - m0));
+            return (uint16_t)(p0 + div_round(dp * ((int32_t)mag - m0), m1 - m0));
         }
     }
     return s->pt[s->n - 1u].pwm; /* saturation */

@@ -322,6 +322,7 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
         count = ENCODER_MAX;
         ok = false;
     }
+    uint8_t hall_mask = 0u;
     hal_irq_state_t st = hal_irq_save();
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {
         encoder_isr_t *e = &s_isr[i];
@@ -339,11 +340,14 @@ bool encoder_init(uint8_t count, const encoder_cfg_t *cfg)
             } else {
                 ok = false;
             }
+            if (cfg[i].mode == ENCODER_MODE_HALL) {
+                hall_mask = (uint8_t)(hall_mask | (1u << i));
+            }
         }
     }
     hal_irq_restore(st);
     s_prev_update_us = hal_time_us();
-    hal_encoder_attach(count, encoder_isr_edge);
+    hal_encoder_attach(count, hall_mask, encoder_isr_edge);
     return ok;
 }
 
@@ -515,6 +519,7 @@ static void update_wheel(enc_loop_t *w, uint32_t now_us, int32_t dt_us, uint32_t
 
 void encoder_update(uint32_t now_us)
 {
+    hal_encoder_poll(); /* hardware-counted wheels into their records (STM32 timers) */
     /* Records first, one short masked copy each, then the clock: every stamp is older. */
     encoder_isr_t r[ENCODER_MAX];
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {

@@ -2,7 +2,8 @@
  * AgNav hardware abstraction layer: the one interface every firmware module
  * talks to. Three backends implement it:
  *   avr/   ATmega2560 timers, pin-change interrupts, USART, EEPROM, watchdog
- *   stm32/ STM32F405 registers: SysTick, USART1, GPIO, EXTI, TIM3/TIM4 PWM, IWDG (board.h)
+ *   stm32/ STM32F405 registers: clock tree, SysTick, USART1, GPIO, EXTI, timer encoder mode,
+ *          TIM9..11 PWM, IWDG (board.h: Olimex STM32-H405)
  *   sim/   driven by unit tests and by the software-in-the-loop harness
  *
  * Devices are addressed by logical index (encoder 0..3, sonar 0..11, servo
@@ -27,6 +28,12 @@ void hal_init(void);
  * Compare times with (int32_t)(a - b), never with a < b. */
 uint32_t hal_time_us(void);
 uint32_t hal_time_ms(void);
+/* True when the core clock comes from the board's crystal; false when the backend runs from an
+ * internal RC oscillator because the crystal did not start (STM32: HSI, +-1 % at 25 degC, about
+ * +-4 % from -10 to 85 degC, DS8626 HSI oscillator characteristics; serial bit rates and every
+ * timing drift with it).
+ * Backends without such a fallback (avr, sim) return true. Valid after hal_init(). */
+bool hal_clock_from_crystal(void);
 /* Busy-wait, used only for the 10 us sonar trigger pulse. */
 void hal_delay_us(uint16_t us);
 /* Sleep until about t_us (hal_time_us() clock) or the next interrupt, whichever comes
@@ -59,7 +66,17 @@ uint16_t hal_uart_tx_space(uint8_t port);
  * idx. ab = (A << 1) | B, the levels just after the edge; t_us = hal_time_us().
  * In single-channel (Hall) mode B reads as 0. */
 typedef void (*hal_encoder_edge_fn)(uint8_t idx, uint8_t ab, uint32_t t_us);
-void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn);
+/* Encoders 0..count-1; bit i of hall_mask set: encoder i is a single-channel (Hall) sensor on A,
+ * its edges reach fn with B = 0 (the B input is not pulled up or sampled); clear: A/B quadrature.
+ * A backend may count quadrature encoders in hardware instead of calling fn per edge (STM32: the
+ * timers' encoder mode); hal_encoder_poll() then brings their counts into the interrupt record. */
+void hal_encoder_attach(uint8_t count, uint8_t hall_mask, hal_encoder_edge_fn fn);
+/* Loop context: fold what hardware counters counted since the last call into the encoder interrupt
+ * record (encoder/encoder_isr.h: raw-forward / raw-backward counts, stamped with the time of this
+ * call), so the loop side reads them like edges from fn. Nothing to do where every edge goes
+ * through fn or the AVR vector (avr, sim). encoder_update() calls it first; call it at least every
+ * 32767 counts of a wheel (the 16-bit counter's half range). */
+void hal_encoder_poll(void);
 
 /* ---- sonar ring (trigger/echo, HC-SR04 / SRF05 class) ----------------- */
 #define HAL_SONAR_MAX 12u

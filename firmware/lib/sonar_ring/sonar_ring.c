@@ -15,6 +15,12 @@ _Static_assert(SONAR_SLOT_US >= SONAR_NEIGHBOUR_GAP_US, "slot shorter than the c
 _Static_assert(SONAR_RING_PERIOD_US <= 100000UL, "full ring slower than 10 Hz");
 /* The slowest echo (rise window + max-range timeout) must end inside the slot. */
 _Static_assert(SONAR_RISE_TIMEOUT_US < SONAR_SLOT_US, "rise window longer than slot");
+/* A working sensor's longest pulse (HC-SR04 with nothing in range: 38 ms) ends before the fall
+ * deadline even when it starts at the end of the rise window. */
+_Static_assert(SONAR_FALL_TIMEOUT_US > SONAR_RISE_TIMEOUT_US + 38000UL, "fall deadline cuts free-space pulses");
+/* The last group's verdicts are in before the next pass's first group must be classified
+ * (one slot after it fired), so a late frame never delays a firing of a ring of >= 2 groups. */
+_Static_assert(SONAR_FALL_TIMEOUT_US < 2u * SONAR_SLOT_US, "fall deadline beyond the next group's slot");
 
 /* ---- presets ------------------------------------------------------------ */
 /* ref 002: 12 sensors, 30 deg apart, S0 front, S6 back; radius 225 mm (the
@@ -40,11 +46,14 @@ const sonar_ring_cfg_t SONAR_RING_1_SRF05 = {RING1, 1u};
 /* ---- ISR side ------------------------------------------------------------ */
 #define ECHO_ROSE 0x01u
 #define ECHO_FELL 0x02u
+/* Set by the loop side at the firing, verdict at classification (the ISR keeps them): */
+#define ECHO_STUCK 0x04u /* line already high at the trigger: FAULT */
+#define ECHO_SKIP 0x08u  /* not fired (cross-talk guard): STALE */
 
 typedef struct {
     uint32_t rise_us;
     uint32_t fall_us;
-    uint8_t flags; /* ECHO_ROSE / ECHO_FELL since the last trigger */
+    uint8_t flags; /* ECHO_ROSE / ECHO_FELL since the last trigger, ECHO_STUCK / ECHO_SKIP */
     uint8_t level; /* last edge seen: 1 high, 0 low */
 } echo_isr_t;
 
@@ -86,6 +95,8 @@ typedef struct {
     bool fired_once;
     uint32_t group_fire_us;              /* when cur_group fired */
     uint16_t pending;                    /* bit i: sensor i awaits classification */
+    uint16_t await_fall;                 /* bit i: echo still high at its max-range timeout */
+    bool publish_due;                    /* pass classified, frame waits for await_fall */
     uint16_t fired_mask;                 /* bit i: last_fire_us[i] valid */
     uint32_t last_fire_us[SONAR_RING_MAX];
 
@@ -183,6 +194,14 @@ static void classify(uint8_t i, uint32_t now_us, bool force)
     fall_us = s_isr[i].fall_us;
     hal_irq_restore(irq);
 
+    if ((flags & ECHO_SKIP) != 0u) {
+        finish(i, SONAR_STALE, 0u);
+        return;
+    }
+    if ((flags & ECHO_STUCK) != 0u) {
+        finish(i, SONAR_FAULT, 0u); /* a new ping cannot start on a line that is high */
+        return;
+    }
     uint32_t since_fire = now_us - s.group_fire_us;
     if ((flags & ECHO_ROSE) == 0u) {
         if (force || since_fire >= SONAR_RISE_TIMEOUT_US) {
@@ -204,7 +223,35 @@ static void classify(uint8_t i, uint32_t now_us, bool force)
         return;
     }
     if (force || (uint32_t)(now_us - rise_us) >= s.timeout_us[i]) {
-        finish(i, SONAR_NO_ECHO, 0u); /* echo still high at max range: free space */
+        /* Still high at max range: free space if the pulse ends (settle_fall decides), a line
+         * stuck high if it does not. The group goes on without it. */
+        s.pending = (uint16_t)(s.pending & ~(1u << i));
+        s.await_fall = (uint16_t)(s.await_fall | (1u << i));
+    }
+}
+
+/* Verdicts on echoes that were still high at their max-range timeout: NO_ECHO once the line
+ * falls within SONAR_FALL_TIMEOUT_US of the trigger, FAULT when it has not by then. */
+static void settle_fall(uint32_t now_us)
+{
+    for (uint8_t i = 0; i < s.n; i++) {
+        if ((s.await_fall & (1u << i)) == 0u) {
+            continue;
+        }
+        hal_irq_state_t irq = hal_irq_save();
+        uint8_t flags = s_isr[i].flags;
+        uint32_t fall_us = s_isr[i].fall_us;
+        hal_irq_restore(irq);
+        uint32_t fire_us = s.last_fire_us[i];
+        if ((flags & ECHO_FELL) != 0u) {
+            bool in_time = (uint32_t)(fall_us - fire_us) < SONAR_FALL_TIMEOUT_US;
+            finish(i, in_time ? SONAR_NO_ECHO : SONAR_FAULT, 0u);
+        } else if ((uint32_t)(now_us - fire_us) >= SONAR_FALL_TIMEOUT_US) {
+            finish(i, SONAR_FAULT, 0u); /* echo line stuck high */
+        } else {
+            continue;
+        }
+        s.await_fall = (uint16_t)(s.await_fall & ~(1u << i));
     }
 }
 
@@ -224,35 +271,40 @@ static bool neighbour_fired_recently(uint8_t i, uint32_t now_us)
     return false;
 }
 
+/* Fires group g, unless one of its sensors still awaits the end of its previous echo (only a
+ * 1-group ring fires a sensor again within SONAR_FALL_TIMEOUT_US): then the next step tries again.
+ * Verdicts known at the firing (skipped, line already high) are left to classify(), so a frame
+ * still waiting for the previous pass's last group gets none of this pass's readings. */
 static void fire_group(uint8_t g, uint32_t now_us)
 {
+    for (uint8_t i = 0; i < s.n; i++) {
+        if (s.group_of[i] == g && (s.await_fall & (1u << i)) != 0u) {
+            return;
+        }
+    }
     s.group_fire_us = now_us;
     s.pending = 0u;
     for (uint8_t i = 0; i < s.n; i++) {
         if (s.group_of[i] != g) {
             continue;
         }
-        if (neighbour_fired_recently(i, now_us)) {
+        s.pending = (uint16_t)(s.pending | (1u << i));
+        bool skip = neighbour_fired_recently(i, now_us);
+        hal_irq_state_t irq = hal_irq_save();
+        uint8_t stuck_high = s_isr[i].level;
+        s_isr[i].flags = skip ? ECHO_SKIP : stuck_high != 0u ? ECHO_STUCK : 0u;
+        hal_irq_restore(irq);
+        if (skip) {
             if (s.guard_skips < 65535u) {
                 s.guard_skips++;
             }
-            s.work_status[i] = SONAR_STALE;
-            s.work_mm[i] = 0u;
             continue;
         }
-        hal_irq_state_t irq = hal_irq_save();
-        uint8_t stuck_high = s_isr[i].level;
-        s_isr[i].flags = 0u;
-        hal_irq_restore(irq);
         s.last_fire_us[i] = now_us;
         s.fired_mask = (uint16_t)(s.fired_mask | (1u << i));
-        if (stuck_high != 0u) {
-            /* Echo line still high from long ago: a new ping cannot start. */
-            finish(i, SONAR_FAULT, 0u);
-            continue;
+        if (stuck_high == 0u) {
+            hal_sonar_trigger(i);
         }
-        s.pending = (uint16_t)(s.pending | (1u << i));
-        hal_sonar_trigger(i);
     }
     s.measuring = true;
     s.fired_once = true;
@@ -319,22 +371,35 @@ void sonar_ring_step(uint32_t now_us)
         return;
     }
     hal_sonar_poll(); /* echo edges the HAL queued (avr) reach sonar_ring_isr_echo now */
-    if (s.measuring) {
+    if (s.await_fall != 0u) {
+        settle_fall(now_us);
+    }
+    /* While a frame waits (publish_due), the group fired since keeps its echo stamps and is
+     * classified once the frame is out. */
+    if (s.measuring && !s.publish_due) {
         bool force = (uint32_t)(now_us - s.group_fire_us) >= SONAR_SLOT_US;
         for (uint8_t i = 0; i < s.n; i++) {
             if ((s.pending & (1u << i)) != 0u) {
                 classify(i, now_us, force);
             }
         }
-        if (s.pending != 0u) {
-            return;
+        if (s.pending == 0u) {
+            s.measuring = false;
+            s.cur_group++;
+            if (s.cur_group >= s.n_groups) {
+                s.cur_group = 0u;
+                s.publish_due = true;
+            }
         }
-        s.measuring = false;
-        s.cur_group++;
-        if (s.cur_group >= s.n_groups) {
-            s.cur_group = 0u;
-            publish(now_us);
-        }
+    }
+    /* A pass's frame goes out once its echoes still high at max range have ended (await_fall);
+     * the next group fires on time regardless. */
+    if (s.publish_due && s.await_fall == 0u) {
+        s.publish_due = false;
+        publish(now_us);
+    }
+    if (s.measuring) {
+        return;
     }
     /* Next group: at least one slot after the previous group's real firing. */
     if (!s.fired_once || (uint32_t)(now_us - s.group_fire_us) >= SONAR_SLOT_US) {

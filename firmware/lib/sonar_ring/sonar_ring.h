@@ -24,6 +24,11 @@
  *   Hence any two neighbour triggers are >= SONAR_SLOT_US >= 30 ms apart, and
  *   the whole ring repeats every 3 * 32 ms = 96 ms (10.4 Hz) instead of the
  *   12 * ~33 ms = 400 ms (2.5 Hz) of firing one sensor at a time.
+ *   An echo still high at its max-range timeout is decided when it falls (free
+ *   space) or at SONAR_FALL_TIMEOUT_US (stuck line). The pass's frame waits for
+ *   those verdicts (an HC-SR04 in free space in the last group: ~6.5 ms); the
+ *   next group fires on time and is classified after the frame is out. A ring of
+ *   one group (1 sensor) fires a sensor again only after its echo ended.
  *   Rings whose size leaves sensor n-1 and sensor 0 in the same group (n = 4,
  *   7, 10) move sensor n-1 to group 1; rings of 1 or 2 sensors use 1 or 2 groups.
  *
@@ -52,14 +57,21 @@ extern "C" {
 #define SONAR_SLOT_US 32000UL           /* minimum time between two group firings */
 #define SONAR_NEIGHBOUR_GAP_US 30000UL  /* cross-talk rule for adjacent sensors */
 #define SONAR_RISE_TIMEOUT_US 4000UL    /* trigger -> echo rising edge; later = FAULT */
+/* Trigger -> echo falling edge; a line still high later is stuck = FAULT. A working sensor ends
+ * every pulse well before: an HC-SR04 holds the echo 38 ms when nothing is in range, an SRF05
+ * (Devantech technical specification) about 30 ms. */
+#define SONAR_FALL_TIMEOUT_US 50000UL
 #define SONAR_RING_PERIOD_US (SONAR_GROUPS * SONAR_SLOT_US)
 
 /* Reading status; numeric values are part of the telemetry protocol. */
 typedef enum {
     SONAR_VALID = 0,   /* echo received: range_mm is the median-filtered distance */
-    SONAR_NO_ECHO = 1, /* echo pulse ran to the max-range timeout: free space, range_mm = max_range_mm */
-    SONAR_FAULT = 2,   /* no rising edge within SONAR_RISE_TIMEOUT_US after the trigger, or the
-                          echo line was still high when triggered (stuck): range_mm = 0 */
+    SONAR_NO_ECHO = 1, /* echo pulse ran past the max-range timeout and then ended (within
+                          SONAR_FALL_TIMEOUT_US of the trigger): free space, range_mm = max_range_mm */
+    SONAR_FAULT = 2,   /* no rising edge within SONAR_RISE_TIMEOUT_US after the trigger, the echo
+                          line was still high when triggered, or the echo did not fall within
+                          SONAR_FALL_TIMEOUT_US (line stuck high: e.g. an unplugged sensor on a
+                          pulled-up pin, board.h): range_mm = 0 */
     SONAR_STALE = 3    /* not measured in this ring pass (not yet measured since init, or
                           skipped by the cross-talk guard): range_mm = 0 */
 } sonar_status_t;

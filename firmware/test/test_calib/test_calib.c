@@ -77,6 +77,21 @@ static void test_calib_steer_saturates_at_24_6_deg(void)
     TEST_ASSERT_EQUAL_UINT16(96u, calib_pwm_from_value(CALIB_STEER, -4000));
 }
 
+/* The int32 extremes saturate like any value beyond the last point: INT32_MIN has no int32
+ * magnitude (-INT32_MIN overflows; the native build traps that with -fsanitize=undefined). */
+static void test_calib_pwm_from_value_saturates_at_int32_extremes(void)
+{
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(96u, calib_pwm_from_value(CALIB_STEER, INT32_MIN), "full right");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(96u, calib_pwm_from_value(CALIB_STEER, INT32_MIN + 1), "full right");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(171u, calib_pwm_from_value(CALIB_STEER, INT32_MAX), "full left");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(109u, calib_pwm_from_value(CALIB_SPEED_LEFT, INT32_MIN),
+                                     "no reverse side: the magnitude saturates forward");
+    TEST_ASSERT_EQUAL_UINT16(109u, calib_pwm_from_value(CALIB_SPEED_RIGHT, INT32_MAX));
+    calib_table_t t = servo_us_table();
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(1900u, calib_table_pwm(&t, INT32_MIN), "last point of the neg side");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(1100u, calib_table_pwm(&t, INT32_MAX), "last point of the pos side");
+}
+
 static void test_calib_steer_pwm_round_trip_within_one_step(void)
 {
     for (uint16_t pwm = 96u; pwm <= 171u; pwm++) {
@@ -282,6 +297,7 @@ int main(void)
     RUN_TEST(test_crc16_ccitt_false_matches_check_value);
     RUN_TEST(test_calib_default_steer_follows_ref003_fits);
     RUN_TEST(test_calib_steer_saturates_at_24_6_deg);
+    RUN_TEST(test_calib_pwm_from_value_saturates_at_int32_extremes);
     RUN_TEST(test_calib_steer_pwm_round_trip_within_one_step);
     RUN_TEST(test_calib_steer_angle_round_trip_within_half_step);
     RUN_TEST(test_calib_speed_dead_band_returns_zero);

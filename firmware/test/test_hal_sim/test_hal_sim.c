@@ -77,7 +77,7 @@ static void test_sim_eeprom_starts_erased_and_keeps_writes(void)
 
 static void test_sim_encoder_edge_reaches_hook_with_time(void)
 {
-    hal_encoder_attach(2u, on_edge);
+    hal_encoder_attach(2u, 0u, on_edge);
     sim_time_set_us(1234u);
     sim_encoder_edge(1u, 2u);
     TEST_ASSERT_EQUAL_UINT8(1u, s_calls);

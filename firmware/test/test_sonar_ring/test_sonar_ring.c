@@ -11,6 +11,9 @@
 #define MODE_FREE 1u   /* nothing in range: HC-SR04 holds echo high ~38 ms */
 #define MODE_DEAD 2u   /* no rising edge at all (unplugged sensor) */
 #define MODE_STUCK 3u  /* echo rises once and never falls */
+#define MODE_HELD 4u   /* 450 us after the first trigger the line goes high and is held there
+                          (sim_sonar_echo_hold_high): an output stuck high, an unplugged sensor on
+                          a pulled-up pin */
 
 #define EV_RISE 1u
 #define EV_FALL 2u
@@ -61,6 +64,7 @@ static void on_trigger(uint8_t idx, uint32_t t_us)
         due[idx] = EV_RISE | EV_FALL;
         break;
     case MODE_STUCK:
+    case MODE_HELD:
         if (due[idx] == 0u && rise_at[idx] == 0u) { /* only the first trigger */
             rise_at[idx] = t_us + 450u;
             due[idx] = EV_RISE;
@@ -118,7 +122,11 @@ static void run_for(uint32_t dur_us, uint32_t loop_us)
                 sim_time_set_us(t_ev);
             }
             due[idx] = (uint8_t)(due[idx] & (level != 0u ? (uint8_t)~EV_RISE : (uint8_t)~EV_FALL));
-            sim_sonar_echo_edge(idx, level);
+            if (mode[idx] == MODE_HELD) {
+                sim_sonar_echo_hold_high(idx, true);
+            } else {
+                sim_sonar_echo_edge(idx, level);
+            }
         }
         sim_time_set_us(next);
         sonar_ring_step(hal_time_us());
@@ -220,6 +228,133 @@ void test_sonar_ring_step_reports_fault_when_echo_line_stuck_high(void)
     sonar_ring_snapshot(&f);
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_FAULT, f.status[2], "line high at trigger -> FAULT");
     TEST_ASSERT_TRUE_MESSAGE(sonar_ring_fault_count(2) >= 2u, "faults counted each pass");
+}
+
+/* Runs the ring for dur_us (250 us loop) and checks every frame it publishes: sensor `held` is
+ * FAULT with range 0 in each (never an echo or a range), the others VALID. Returns the frames. */
+static uint32_t frames_with_sensor_faulted(uint8_t held, uint32_t dur_us, uint32_t *first_seq)
+{
+    uint32_t frames = 0u;
+    sonar_frame_t f;
+    for (uint32_t t = 0; t < dur_us; t += 1000u) {
+        run_for(1000u, 250u);
+        if (!sonar_ring_snapshot(&f)) {
+            continue;
+        }
+        if (frames == 0u) {
+            *first_seq = f.seq;
+        }
+        frames++;
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_FAULT, f.status[held], "held-high line: FAULT in every frame");
+        TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, f.ranges_mm[held], "held-high line: no range");
+        for (uint8_t i = 0; i < f.count; i++) {
+            if (i != held && mode[i] == MODE_ECHO) {
+                TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_VALID, f.status[i], "other sensors unaffected");
+            }
+        }
+    }
+    return frames;
+}
+
+/* One fault per published frame, plus at most the one of the pass under way. */
+static void check_one_fault_per_pass(uint8_t idx, uint32_t frames)
+{
+    uint32_t faults = sonar_ring_fault_count(idx);
+    TEST_ASSERT_TRUE_MESSAGE(faults >= frames, "a frame's FAULT not counted");
+    TEST_ASSERT_TRUE_MESSAGE(faults <= frames + 1u, "more than one fault per pass");
+}
+
+/* The line rises where an echo would start and never falls again: no pass may read it as free
+ * space. One sensor of each firing group (6: group 0, 10: group 1, 2: group 2 = the last group
+ * of a pass). */
+void test_sonar_ring_step_reports_fault_in_every_frame_when_echo_line_goes_high_and_stays(void)
+{
+    static const uint8_t held[3] = {6u, 10u, 2u};
+    for (uint8_t k = 0; k < 3u; k++) {
+        setUp();
+        mode[held[k]] = MODE_HELD;
+        uint32_t first_seq = 0u;
+        uint32_t frames = frames_with_sensor_faulted(held[k], 600000UL, &first_seq);
+        TEST_ASSERT_EQUAL_UINT32_MESSAGE(1u, first_seq, "every frame seen from the first");
+        TEST_ASSERT_TRUE_MESSAGE(frames >= 6u, "frames kept coming at ~10 Hz");
+        check_one_fault_per_pass(held[k], frames);
+    }
+}
+
+/* Power-on with the line already high (an unplugged sonar on D20/D21, the Mega's I2C pull-ups):
+ * no edge ever reaches the ring. */
+void test_sonar_ring_step_reports_fault_when_echo_line_high_from_power_on(void)
+{
+    sim_reset();
+    sim_sonar_on_trigger(on_trigger);
+    sim_sonar_echo_hold_high(9u, true); /* before the ring attaches: no edge */
+    mode[9] = MODE_DEAD;
+    ring_setup(&SONAR_RING_12_SDLG);
+    uint32_t first_seq = 0u;
+    uint32_t frames = frames_with_sensor_faulted(9u, 600000UL, &first_seq);
+    TEST_ASSERT_EQUAL_UINT32(1u, first_seq);
+    TEST_ASSERT_TRUE(frames >= 6u);
+    check_one_fault_per_pass(9u, frames);
+}
+
+/* A free-space echo of the last group still high when its slot ends (HC-SR04: 38 ms): the frame
+ * waits for it to end, while the next pass's first group fires on time, and holds that pass's
+ * readings back: sensor 0 (group 0) dies from its 3rd trigger on, so frames 1 and 2 show it VALID
+ * and frame 3 FAULT. */
+static uint32_t s0_triggers;
+static void on_trigger_s0_dies_from_third(uint8_t idx, uint32_t t_us)
+{
+    if (idx == 0u && ++s0_triggers >= 3u) {
+        mode[0] = MODE_DEAD;
+    }
+    on_trigger(idx, t_us);
+}
+
+void test_sonar_ring_frame_holds_one_pass_while_last_group_free_space_echo_ends(void)
+{
+    s0_triggers = 0u;
+    sim_sonar_on_trigger(on_trigger_s0_dies_from_third);
+    mode[5] = MODE_FREE; /* group 2 */
+    sonar_frame_t f;
+    uint32_t last_stamp = 0u;
+    for (uint32_t seq = 1u; seq <= 4u;) {
+        run_for(250u, 250u);
+        if (!sonar_ring_snapshot(&f)) {
+            continue;
+        }
+        TEST_ASSERT_EQUAL_UINT32_MESSAGE(seq, f.seq, "a frame per pass");
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_NO_ECHO, f.status[5], "free space");
+        TEST_ASSERT_EQUAL_UINT16(4000u, f.ranges_mm[5]);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(seq < 3u ? SONAR_VALID : SONAR_FAULT, f.status[0],
+                                        "group 0 reading of this pass, not of the next");
+        if (seq > 1u) {
+            TEST_ASSERT_UINT32_WITHIN_MESSAGE(1000u, SONAR_RING_PERIOD_US, f.stamp_us - last_stamp,
+                                              "frames still 96 ms apart");
+        }
+        last_stamp = f.stamp_us;
+        seq++;
+    }
+    TEST_ASSERT_EQUAL_UINT16(0u, sonar_ring_fault_count(5));
+    TEST_ASSERT_EQUAL_UINT16(0u, neighbour_violations);
+}
+
+/* A single sensor fires every slot; an HC-SR04 free-space echo (38 ms) outlasts the 32 ms slot, so
+ * the ring waits for it to end before firing again, instead of seeing it high at the trigger. */
+void test_sonar_ring_single_sensor_waits_for_free_space_echo_to_end(void)
+{
+    ring_setup(&SONAR_RING_1_SRF05);
+    mode[0] = MODE_FREE;
+    sonar_frame_t f;
+    uint32_t frames = 0u;
+    for (uint16_t k = 0; k < 1000u; k++) {
+        run_for(500u, 250u);
+        if (sonar_ring_snapshot(&f)) {
+            frames++;
+            TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_NO_ECHO, f.status[0], "free space in every frame");
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, sonar_ring_fault_count(0), "free space is not a fault");
+    TEST_ASSERT_TRUE_MESSAGE(frames >= 5u, "at least 10 Hz over 0.5 s");
 }
 
 /* ---- schedule ---------------------------------------------------------- */
@@ -432,6 +567,10 @@ int main(void)
     RUN_TEST(test_sonar_ring_step_reports_no_echo_when_pulse_runs_past_max_range);
     RUN_TEST(test_sonar_ring_step_reports_fault_and_counts_when_no_rising_edge);
     RUN_TEST(test_sonar_ring_step_reports_fault_when_echo_line_stuck_high);
+    RUN_TEST(test_sonar_ring_step_reports_fault_in_every_frame_when_echo_line_goes_high_and_stays);
+    RUN_TEST(test_sonar_ring_step_reports_fault_when_echo_line_high_from_power_on);
+    RUN_TEST(test_sonar_ring_frame_holds_one_pass_while_last_group_free_space_echo_ends);
+    RUN_TEST(test_sonar_ring_single_sensor_waits_for_free_space_echo_to_end);
     RUN_TEST(test_sonar_ring_groups_keep_neighbours_apart_for_all_ring_sizes);
     RUN_TEST(test_sonar_ring_schedule_never_fires_neighbours_within_30ms_over_3s);
     RUN_TEST(test_sonar_ring_schedule_keeps_gap_for_six_sensor_ring);

@@ -2,7 +2,8 @@
  * Pin map of the AgNav controller on an ATmega2560 (Arduino Mega 2560 headers).
  * Only this file and hal_avr.c know pin numbers.
  *
- *   link UART         USART0  D0 RX / D1 TX (USB or XBee, 57600 baud)
+ *   link UART         USART0  D0 RX / D1 TX (USB or XBee, 57600 baud: UBRR0 = 34, U2X0, -0.8 %;
+ *                     9600..57600 within 1 %, 115200 refused at 16 MHz, docs/serial.md)
  *   time base         Timer5, clk/64 = 4 us ticks, 16-bit overflow extended in software
  *   steering servo    Timer3 OC3A = PE3 (D5), 50 Hz, 1000-2000 us
  *   ESC / throttle    Timer3 OC3B = PE4 (D2), 50 Hz, 1000-2000 us
@@ -17,12 +18,21 @@
  *                     PD0..PD3 (D21, D20, D19, D18) sonars 8..11 via INT0..INT3 (any edge);
  *                     all five vectors are one hand-written body (echo_pcint_avr.S) that only
  *                     queues (PINB, PIND, TCNT5); hal_sonar_poll() decodes the edges in the loop
+ *                     D21/D20 (PD0/PD1, sonars 8/9) are the Mega 2560's SCL/SDA and carry its
+ *                     on-board 10 k pull-ups to 5 V (TWI stays off): with no sensor plugged in
+ *                     these echo lines read a constant high, the other echo pins float or read
+ *                     low. A fitted sensor's push-pull echo output overrides the pull-up. The
+ *                     sonar ring reports either kind of missing sensor as SONAR_FAULT: no rising
+ *                     edge after the trigger, a line already high at the trigger, or an echo
+ *                     that does not fall within SONAR_FALL_TIMEOUT_US (sonar_ring.h)
  *   link UART vectors USART0 RX / UDRE hand-written too (uart_avr.S), rings in there
  */
 #ifndef AGNAV_BOARD_AVR_H
 #define AGNAV_BOARD_AVR_H
 
 #define BOARD_LINK_UART_BAUD_DEFAULT 57600UL
+/* Largest bit-rate error hal_uart_init() accepts, in percent of the nominal rate (docs/serial.md) */
+#define BOARD_UART_BAUD_ERROR_PCT 1u
 #define BOARD_SERVO_TICKS_PER_US 2u /* Timer3 at clk/8 */
 
 #endif

@@ -1,5 +1,7 @@
-/* ATmega2560 backend of the AgNav HAL. Pin map: board.h. */
-#if defined(__AVR__) && !defined(PIO_UNIT_TESTING)
+/* ATmega2560 backend of the AgNav HAL. Pin map: board.h. Unit-test builds link the sim HAL; this
+ * file is compiled there only by test/test_hal_avr_uart and test/test_hal_avr_pwm, under other names
+ * (AGNAV_HAL_AVR_UNDER_TEST). */
+#if defined(__AVR__) && (!defined(PIO_UNIT_TESTING) || defined(AGNAV_HAL_AVR_UNDER_TEST))
 
 #include "../hal.h"
 #include "board.h"
@@ -107,14 +109,28 @@ extern volatile uint8_t hal_avr_rx_head, hal_avr_rx_tail;
 #define s_rx_head hal_avr_rx_head
 #define s_rx_tail hal_avr_rx_tail
 
+/* Bit rate (ATmega2560 datasheet 2549Q, 22.3.1, Table 22-1): F_CPU / (16 (UBRR0 + 1)) with
+ * U2X0 = 0, F_CPU / (8 (UBRR0 + 1)) with U2X0 = 1. d = F_CPU / (8 baud) rounded to the nearest
+ * integer is the double-speed divisor with the smallest error; an even d is also the normal-speed
+ * divisor d / 2 at the same rate, which keeps 16 samples a bit and the wider receiver tolerance
+ * (22.8.3, Tables 22-2 and 22-3), so U2X0 is set only for an odd d. A rate that no setting meets
+ * within BOARD_UART_BAUD_ERROR_PCT is refused: USART0 is left as it is (off after reset). At 16 MHz
+ * that supports 9600 to 57600 baud and refuses 115200 (table and bound: docs/serial.md). The one
+ * caller passes a constant, so LTO folds all of this to the four register writes. */
 void hal_uart_init(uint8_t port, uint32_t baud)
 {
-    if (port != HAL_UART_LINK) {
+    if (port != HAL_UART_LINK || baud == 0u || baud > F_CPU / 8u) {
         return;
     }
-    uint16_t ubrr = (uint16_t)((F_CPU / 8u / baud) - 1u);
-    UBRR0 = ubrr;
-    UCSR0A = (uint8_t)(1u << U2X0);
+    uint32_t d = (F_CPU + 4u * baud) / (8u * baud);
+    uint32_t clocks = 8u * d * baud; /* F_CPU x baud / actual rate */
+    uint32_t off = clocks > F_CPU ? clocks - F_CPU : F_CPU - clocks;
+    if (off * 100u > clocks * BOARD_UART_BAUD_ERROR_PCT || d > 8192u || ((d & 1u) != 0u && d > 4096u)) {
+        return;
+    }
+    bool u2x = (d & 1u) != 0u;
+    UBRR0 = (uint16_t)((u2x ? d : d / 2u) - 1u);
+    UCSR0A = (uint8_t)(u2x ? (1u << U2X0) : 0u);
     UCSR0C = (uint8_t)((1u << UCSZ01) | (1u << UCSZ00));
     UCSR0B = (uint8_t)((1u << RXEN0) | (1u << TXEN0) | (1u << RXCIE0));
 }
@@ -158,13 +174,24 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
  * The vector is hand-written (encoder_pcint_avr.S): it decodes all four
  * encoders into encoder_isr_state[] (rules: encoder/encoder_isr.h) and keeps the
  * previous PINK in GPIOR1, which attach seeds here. Cycle budget and
- * measurement: BENCHMARKS.md (encoder ISR). */
-void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
+ * measurement: BENCHMARKS.md (encoder ISR).
+ * A quadrature wheel has pull-ups on A and B (open-collector outputs). A Hall wheel (hall_mask)
+ * has the pull-up on A only: B keeps its pull-up off and its pin-change bit clear, so an unused B
+ * line reads 0 as hal.h promises (the ATmega2560 has no pull-downs: a B line left floating must be
+ * tied to GND, e.g. 10 kOhm, because the vector decodes B's level on every A edge). */
+void hal_encoder_attach(uint8_t count, uint8_t hall_mask, hal_encoder_edge_fn fn)
 {
     if (count > HAL_ENCODER_MAX) {
         count = HAL_ENCODER_MAX;
     }
     uint8_t mask = (uint8_t)((1u << (2u * count)) - 1u);
+    uint8_t hall_b = 0u; /* the B lines (PK(2i + 1)) of Hall wheels: bit i of hall_mask to bit 2i + 1 */
+    for (uint8_t b = 2u; hall_mask != 0u; hall_mask >>= 1, b = (uint8_t)(b << 2)) {
+        if ((hall_mask & 1u) != 0u) {
+            hall_b |= b;
+        }
+    }
+    hall_b &= mask;
     uint8_t sreg = SREG;
     cli();
     DDRK &= (uint8_t)~mask;
@@ -172,14 +199,23 @@ void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
      * (push-pull encoder, the SIL/harness rigs) reads its level either way, and simavr lets
      * a pull-up override a driven line. A floating open-collector line (Hall) can cost one
      * count or one illegal jump at boot. */
+    PORTK &= (uint8_t)~hall_b;
     GPIOR1 = PINK;
-    PORTK |= mask; /* pull-ups: open-collector Hall sensors; B of a Hall wheel reads 1 */
+    PORTK |= (uint8_t)(mask & (uint8_t)~hall_b);
     (void)fn; /* always the assembly vector on this board */
-    PCMSK2 = mask;
+    PCMSK2 = (uint8_t)(mask & (uint8_t)~hall_b);
     PCIFR = (uint8_t)(1u << PCIF2); /* drop a change seen before GPIOR1 was seeded */
     PCICR |= (uint8_t)(1u << PCIE2);
     SREG = sreg;
 }
+
+#ifndef AGNAV_HAL_AVR_UNDER_TEST /* suites that compile this file take these two from the sim HAL */
+/* Every encoder edge goes through the PORTK vector: no hardware counter to fold. */
+void hal_encoder_poll(void) {}
+
+/* The fuses select the board's 16 MHz crystal; the ATmega2560 has no clock fallback. */
+bool hal_clock_from_crystal(void) { return true; }
+#endif
 
 /* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 ---
  * The echo vectors (echo_pcint_avr.S, one body for all five) only queue (PINB, PIND, TCNT5)
@@ -280,15 +316,34 @@ void hal_servo_write_us(uint8_t channel, uint16_t pulse_us)
     }
 }
 
+/* 8-bit fast PWM (Timer4 mode 5, TOP = 0xFF) cannot hold OC4x low: with OCR4x = BOTTOM the output
+ * is still a one-timer-clock spike every period (ATmega2560 datasheet 2549Q, 17.9.3 Fast PWM Mode).
+ * Duty 0 therefore takes the compare output off the pin (COM4x1:0 = 00, normal port operation,
+ * Table 17-4) and the pin, still an output, follows its PORTH bit, which stays 0. Any other duty
+ * writes OCR4x (double-buffered: takes effect at TOP) and connects OC4x non-inverting
+ * (COM4x1:0 = 10: cleared on compare match, set at BOTTOM); 255 = TOP is high throughout.
+ * Loop context only: TCCR4A is read-modify-written without masking interrupts (no ISR writes it). */
 void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse)
 {
+    uint8_t com;
+    uint8_t dir;
     if (channel == 0u) {
         OCR4A = duty;
-        if (reverse) PORTH |= (uint8_t)(1u << PH5); else PORTH &= (uint8_t)~(1u << PH5);
+        com = (uint8_t)(1u << COM4A1);
+        dir = (uint8_t)(1u << PH5);
     } else if (channel == 1u) {
         OCR4B = duty;
-        if (reverse) PORTH |= (uint8_t)(1u << PH6); else PORTH &= (uint8_t)~(1u << PH6);
+        com = (uint8_t)(1u << COM4B1);
+        dir = (uint8_t)(1u << PH6);
+    } else {
+        return;
     }
+    if (duty != 0u) {
+        TCCR4A |= com;
+    } else {
+        TCCR4A &= (uint8_t)~com;
+    }
+    if (reverse) PORTH |= dir; else PORTH &= (uint8_t)~dir;
 }
 
 /* ---- EEPROM ----------------------------------------------------------- */
@@ -346,11 +401,14 @@ void hal_init(void)
     OCR3B = 3000u;
     TCCR3A = (uint8_t)((1u << COM3A1) | (1u << COM3B1) | (1u << WGM31));
     TCCR3B = (uint8_t)((1u << WGM33) | (1u << WGM32) | (1u << CS31));
-    /* Timer4: 8-bit fast PWM for H-bridges, ~7.8 kHz; direction lines PH5, PH6. */
+    /* Timer4: 8-bit fast PWM (mode 5) at clk/8 for the H-bridges, 16 MHz / 8 / 256 = 7.8 kHz;
+     * direction lines PH5, PH6. Duty 0 at start: OC4A/OC4B stay off the pins, which are driven
+     * low by PORTH (hal_pwm_write_duty connects them for a non-zero duty). */
+    PORTH &= (uint8_t)~((1u << PH3) | (1u << PH4));
     DDRH |= (uint8_t)((1u << PH3) | (1u << PH4) | (1u << PH5) | (1u << PH6));
     OCR4A = 0;
     OCR4B = 0;
-    TCCR4A = (uint8_t)((1u << COM4A1) | (1u << COM4B1) | (1u << WGM40));
+    TCCR4A = (uint8_t)(1u << WGM40);
     TCCR4B = (uint8_t)((1u << WGM42) | (1u << CS41));
     sei();
 }

@@ -23,11 +23,14 @@ static struct {
     hal_reset_cause_t reset_cause;
     hal_encoder_edge_fn encoder_fn;
     uint8_t encoder_count;
+    uint8_t encoder_hall; /* bit i: encoder i is single-channel (Hall): B reads 0 */
     hal_echo_edge_fn echo_fn;
     uint8_t sonar_count;
     sim_trigger_fn trigger_fn;
     uint32_t trigger_count[HAL_SONAR_MAX];
     uint32_t last_trigger_us[HAL_SONAR_MAX];
+    uint16_t echo_high; /* bit i: echo line i is high */
+    uint16_t echo_held; /* bit i: echo line i held high (sim_sonar_echo_hold_high) */
     uint16_t servo_us[HAL_SERVO_MAX];
     uint8_t pwm_duty[HAL_PWM_MAX];
     bool pwm_reverse[HAL_PWM_MAX];
@@ -71,6 +74,7 @@ void sim_reset(void)
 }
 
 void hal_init(void) { /* state is set by sim_reset() */ }
+bool hal_clock_from_crystal(void) { return true; } /* the world's clock is exact */
 uint32_t hal_time_us(void) { return sim.now_us; }
 uint32_t hal_time_ms(void) { return hal_clock_ms_update(&sim.clock_ms, sim.now_us); }
 void hal_delay_us(uint16_t us) { sim.now_us += us; }
@@ -129,15 +133,23 @@ uint16_t sim_uart_put_rx(uint8_t port, const uint8_t *src, uint16_t len)
     return port < UART_PORTS ? fifo_put(&sim.rx[port], src, len) : 0u;
 }
 
-void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
+void hal_encoder_attach(uint8_t count, uint8_t hall_mask, hal_encoder_edge_fn fn)
 {
     sim.encoder_count = count > HAL_ENCODER_MAX ? HAL_ENCODER_MAX : count;
+    sim.encoder_hall = hall_mask;
     sim.encoder_fn = fn;
 }
 
+/* Every edge reaches the hook: no hardware counter to fold. */
+void hal_encoder_poll(void) {}
+
+/* The world sets both lines; a Hall wheel's B input is not read (hal.h), so the hook sees B = 0. */
 void sim_encoder_edge(uint8_t idx, uint8_t ab)
 {
     if (sim.encoder_fn != 0 && idx < sim.encoder_count) {
+        if ((sim.encoder_hall & (1u << idx)) != 0u) {
+            ab &= 2u;
+        }
         sim.encoder_fn(idx, ab, sim.now_us);
     }
 }
@@ -164,10 +176,40 @@ void hal_sonar_trigger(uint8_t idx)
 
 void sim_sonar_on_trigger(sim_trigger_fn fn) { sim.trigger_fn = fn; }
 
+/* The line takes the level; the hook hears it only if the line changes and a ring is attached (a
+ * line already high at hal_sonar_attach() makes no edge, as on the boards). */
+static void echo_line_set(uint8_t idx, uint8_t level)
+{
+    uint16_t bit = (uint16_t)(1u << idx);
+    bool changed = ((sim.echo_high & bit) != 0u) != (level != 0u);
+    sim.echo_high = (uint16_t)(level != 0u ? sim.echo_high | bit : sim.echo_high & ~bit);
+    if (changed && sim.echo_fn != 0 && idx < sim.sonar_count) {
+        sim.echo_fn(idx, level, sim.now_us);
+    }
+}
+
 void sim_sonar_echo_edge(uint8_t idx, uint8_t level)
 {
+    if (idx >= HAL_SONAR_MAX || (sim.echo_held & (1u << idx)) != 0u) {
+        return; /* a held line does not move */
+    }
     if (sim.echo_fn != 0 && idx < sim.sonar_count) {
         sim.echo_fn(idx, level, sim.now_us);
+    }
+    sim.echo_high = (uint16_t)(level != 0u ? sim.echo_high | (1u << idx) : sim.echo_high & ~(1u << idx));
+}
+
+void sim_sonar_echo_hold_high(uint8_t idx, bool hold)
+{
+    if (idx >= HAL_SONAR_MAX) {
+        return;
+    }
+    if (hold) {
+        sim.echo_held = (uint16_t)(sim.echo_held | (1u << idx));
+        echo_line_set(idx, 1u);
+    } else {
+        sim.echo_held = (uint16_t)(sim.echo_held & ~(1u << idx));
+        echo_line_set(idx, 0u);
     }
 }
 

@@ -25,10 +25,16 @@ void sim_time_set_us(uint32_t t_us);
 void sim_time_advance_us(uint32_t dt_us);
 void sim_set_reset_cause(hal_reset_cause_t cause);
 
-/* Inject an encoder edge at the current simulated time (calls the attached hook). */
+/* Inject an encoder edge at the current simulated time (calls the attached hook; for an encoder
+ * attached as Hall, B reaches the hook as 0). */
 void sim_encoder_edge(uint8_t idx, uint8_t ab);
-/* Inject an echo edge on sonar idx at the current simulated time. */
+/* Inject an echo edge on sonar idx at the current simulated time (ignored while the line is held). */
 void sim_sonar_echo_edge(uint8_t idx, uint8_t level);
+/* Hold the echo line of sonar idx high (hold = true) or let it go low (false), at the current
+ * simulated time: an unplugged sensor on a pulled-up pin, or an echo output stuck high. The hook
+ * hears a rising (falling) edge if the line was low (high) and a ring is attached; a line held
+ * before hal_sonar_attach() makes no edge. While held, sim_sonar_echo_edge() on idx does nothing. */
+void sim_sonar_echo_hold_high(uint8_t idx, bool hold);
 /* Number of trigger pulses emitted on sonar idx since reset, and time of the last one. */
 uint32_t sim_sonar_trigger_count(uint8_t idx);
 uint32_t sim_sonar_last_trigger_us(uint8_t idx);

@@ -1,20 +1,25 @@
 /*
  * STM32F405 backend of the AgNav HAL (register level after RM0090, no vendor library).
- * Pin map and the board assumed: board.h.
- *   link UART   USART1 PA9 TX / PA10 RX, interrupt-driven rings (RX 256 B, TX 512 B)
+ * Pin map and the board (Olimex STM32-H405): board.h; wiring, flashing: docs/stm32.md.
+ *   clock       HSE 8 MHz crystal -> PLL -> 168 MHz SYSCLK, APB1 42 MHz, APB2 84 MHz, 48 MHz for
+ *               USB; HSI 16 MHz -> PLL -> the same clocks when the crystal does not start
+ *               (hal_clock_from_crystal() tells which)
+ *   link UART   USART1 PA9 TX / PA10 RX, interrupt-driven rings (RX 256 B, TX 512 B), BRR rounded
  *   time        SysTick at 1 kHz from the core clock + the current-value register
- *   servos      TIM3 CH1/CH2 (PA6, PA7), 50 Hz, 1 us resolution
- *   H-bridges   TIM4 CH1/CH2 (PB6, PB7), 20 kHz, 8-bit duty scaled to the period; DIR on GPIO
- *   encoders    EXTI lines 0..7 (PC0..PC7), both edges
- *   sonars      GPIO trigger pulse; echoes on EXTI lines 8..15, both edges
+ *   servos      TIM9 CH1/CH2 (PA2, PA3), 50 Hz, 1 us resolution
+ *   H-bridges   TIM10 CH1 (PB8), TIM11 CH1 (PB9), 20 kHz, 8-bit duty scaled to the period; DIR on GPIO
+ *   encoders    quadrature: TIM2, TIM3, TIM4, TIM8 in encoder mode (x4, filtered inputs, no CPU per
+ *               edge), folded into the encoder record by hal_encoder_poll(); Hall: EXTI on A
+ *   sonars      GPIO trigger pulse (two pins each fire four sonars of one ring group); echoes on
+ *               one EXTI line each, both edges
  *   watchdog    IWDG from the ~32 kHz LSI
  *   EEPROM      4 KB emulated in flash sectors 1 and 2 (lib/flash_eeprom; the linker script keeps
  *               code out of them), erase and program run from RAM
  *
  * Under QEMU netduinoplus2 (7.2) USART1, SysTick, NVIC, SYSCFG, EXTI's registers and TIM2..5
- * are modelled; GPIO, RCC, FLASH, IWDG and TIM1/8.. are "unimplemented" (reads 0, writes
+ * are modelled; GPIO, RCC, FLASH, IWDG and TIM1, TIM8..14 are "unimplemented" (reads 0, writes
  * ignored) and nothing drives an EXTI line from a pin. What that leaves untested is listed in
- * docs/firmware/hal_stm32.md. Every wait on a flag is bounded, so unmodelled blocks never hang.
+ * docs/stm32.md. Every wait on a flag is bounded, so unmodelled blocks never hang.
  *
  * Built for the firmware (not for unit-test builds, which link the sim backend) and, under
  * other names, by test/test_hal_stm32 (AGNAV_HAL_STM32_UNDER_TEST).
@@ -22,6 +27,7 @@
 #if defined(__arm__) && (!defined(PIO_UNIT_TESTING) || defined(AGNAV_HAL_STM32_UNDER_TEST))
 
 #include "../hal.h"
+#include "../../encoder/encoder_isr.h"
 #include "board.h"
 #include "flash_eeprom.h"
 
@@ -29,14 +35,52 @@
 
 #define REG32(addr) (*(volatile uint32_t *)(addr))
 
-#define RCC_CR REG32(0x40023800u)
-#define RCC_PLLCFGR REG32(0x40023804u)
-#define RCC_CFGR REG32(0x40023808u)
-#define RCC_AHB1ENR REG32(0x40023830u)
-#define RCC_APB1ENR REG32(0x40023840u)
-#define RCC_APB2ENR REG32(0x40023844u)
-#define RCC_CSR REG32(0x40023874u)
+/* Register blocks by base address (RM0090 2.3). test/test_hal_stm32 points RCC and GPIO at RAM
+ * to read back what this file writes there (QEMU does not model either block). */
+#ifndef HAL_STM32_RCC_BASE
+#define HAL_STM32_RCC_BASE 0x40023800u
+#endif
+#ifndef HAL_STM32_GPIO_BASE
+#define HAL_STM32_GPIO_BASE 0x40020000u
+#endif
+
+/* RCC (RM0090 7.3) */
+#define RCC_CR REG32(HAL_STM32_RCC_BASE + 0x00u)
+#define RCC_PLLCFGR REG32(HAL_STM32_RCC_BASE + 0x04u)
+#define RCC_CFGR REG32(HAL_STM32_RCC_BASE + 0x08u)
+#define RCC_AHB1ENR REG32(HAL_STM32_RCC_BASE + 0x30u)
+#define RCC_APB1ENR REG32(HAL_STM32_RCC_BASE + 0x40u)
+#define RCC_APB2ENR REG32(HAL_STM32_RCC_BASE + 0x44u)
+#define RCC_CSR REG32(HAL_STM32_RCC_BASE + 0x74u)
+#define RCC_CR_HSEON (1u << 16)
+#define RCC_CR_HSERDY (1u << 17)
+#define RCC_CR_CSSON (1u << 19)
+#define RCC_CR_PLLON (1u << 24)
+#define RCC_CR_PLLRDY (1u << 25)
+#define RCC_PLLCFGR_FIELDS 0x0F437FFFu /* PLLQ, PLLSRC, PLLP, PLLN, PLLM; the rest is reserved */
+#define RCC_PLLCFGR_PLLSRC_HSE (1u << 22)
+#define RCC_CFGR_SW_PLL 2u
+#define RCC_CFGR_SWS_MASK (3u << 2)
+#define RCC_CFGR_SWS_PLL (2u << 2)
+#define RCC_CFGR_PRESCALERS 0xFCF0u /* PPRE2, PPRE1, HPRE */
+#define RCC_CFGR_PPRE1_DIV4 (5u << 10)
+#define RCC_CFGR_PPRE2_DIV2 (4u << 13)
+#define RCC_APB2ENR_USART1 (1u << 4)
+#define RCC_APB2ENR_SYSCFG (1u << 14)
+/* RCC_CSR reset flags (RM0090 7.3.21) */
+#define RCC_CSR_RMVF (1u << 24)
+#define RCC_CSR_BORRSTF (1u << 25)
+#define RCC_CSR_PINRSTF (1u << 26)
+#define RCC_CSR_PORRSTF (1u << 27)
+#define RCC_CSR_SFTRSTF (1u << 28)
+#define RCC_CSR_IWDGRSTF (1u << 29)
+#define RCC_CSR_WWDGRSTF (1u << 30)
+#define RCC_CSR_LPWRRSTF (1u << 31)
+
 #define FLASH_ACR REG32(0x40023C00u)
+#define FLASH_ACR_PRFTEN (1u << 8)
+#define FLASH_ACR_ICEN (1u << 9)
+#define FLASH_ACR_DCEN (1u << 10)
 
 #define USART1_SR REG32(0x40011000u)
 #define USART1_DR REG32(0x40011004u)
@@ -49,8 +93,8 @@
 #define SCB_ICSR REG32(0xE000ED04u)
 #define NVIC_ISER(n) REG32(0xE000E100u + 4u * (n))
 
-/* GPIOx at 0x40020000 + 0x400 * x (RM0090 8.4) */
-#define GPIO_REG(port, off) REG32(0x40020000u + 0x400u * (uint32_t)(port) + (off))
+/* GPIOx at the GPIO base + 0x400 * x (RM0090 8.4) */
+#define GPIO_REG(port, off) REG32(HAL_STM32_GPIO_BASE + 0x400u * (uint32_t)(port) + (off))
 #define GPIO_MODER(p) GPIO_REG(p, 0x00u)
 #define GPIO_OTYPER(p) GPIO_REG(p, 0x04u)
 #define GPIO_PUPDR(p) GPIO_REG(p, 0x0Cu)
@@ -66,29 +110,61 @@
 #define EXTI_SWIER REG32(0x40013C10u)
 #define EXTI_PR REG32(0x40013C14u)
 
-/* General-purpose timers (RM0090 18.4) */
+/* Timers (RM0090 17.4 TIM1/8, 18.4 TIM2..5, 19.4/19.5 TIM9..14: the same offsets) */
 #define TIM_REG(base, off) REG32((base) + (off))
-#define TIM3_BASE 0x40000400u
-#define TIM4_BASE 0x40000800u
 #define TIM_CR1 0x00u
+#define TIM_SMCR 0x08u
 #define TIM_EGR 0x14u
 #define TIM_CCMR1 0x18u
 #define TIM_CCER 0x20u
+#define TIM_CNT 0x24u
 #define TIM_PSC 0x28u
 #define TIM_ARR 0x2Cu
 #define TIM_CCR1 0x34u
 #define TIM_CCR2 0x38u
+#define TIM_CR1_CEN (1u << 0)
+#define TIM_CR1_ARPE (1u << 7)
+#define TIM_CR1_CKD(n) ((uint32_t)(n) << 8) /* t_DTS = 2^n t_CK_INT: the input filters' clock */
+#define TIM_SMCR_SMS_ENCODER3 3u           /* counts on both TI1FP1 and TI2FP2 edges (x4) */
+#define TIM_EGR_UG 1u
 
 #define IWDG_KR REG32(0x40003000u)
 #define IWDG_PR REG32(0x40003004u)
 #define IWDG_RLR REG32(0x40003008u)
 #define IWDG_SR REG32(0x4000300Cu)
 
-#define CORE_HZ 168000000u /* PLL from the 16 MHz HSI; QEMU netduinoplus2 runs at this clock too */
-#define APB1_TIMER_HZ (CORE_HZ / 2u) /* APB1 = HCLK / 4, its timers run at twice that */
+/* ---- clock tree ------------------------------------------------------------
+ * Either source feeds the PLL a 2 MHz reference (RM0090 7.3.2 PLLM: 1-2 MHz, 2 MHz recommended to
+ * limit jitter): VCO 2 MHz x 168 = 336 MHz (100-432 MHz), /2 = 168 MHz SYSCLK (P), /7 = 48 MHz for
+ * USB OTG FS, SDIO, RNG (Q). AHB /1, APB1 /4 = 42 MHz (max 42), APB2 /2 = 84 MHz (max 84); timers
+ * on a divided APB run at twice its clock (RM0090 7.2, clock tree): 84 MHz on APB1, 168 on APB2. */
+#define HSI_HZ 16000000u
+#define PLL_REF_HZ 2000000u
+#define PLL_M_HSE (BOARD_HSE_HZ / PLL_REF_HZ)
+#define PLL_M_HSI (HSI_HZ / PLL_REF_HZ)
+#define PLL_N 168u
+#define PLL_P 2u
+#define PLL_Q 7u
+#define CORE_HZ (PLL_REF_HZ * PLL_N / PLL_P)
+#define APB1_HZ (CORE_HZ / 4u)
 #define APB2_HZ (CORE_HZ / 2u)
+#define APB1_TIMER_HZ (2u * APB1_HZ)
+#define APB2_TIMER_HZ (2u * APB2_HZ)
+_Static_assert(BOARD_HSE_HZ % PLL_REF_HZ == 0u && PLL_M_HSE >= 2u && PLL_M_HSE <= 63u, "HSE / M = 2 MHz");
+_Static_assert(CORE_HZ == 168000000u, "168 MHz SYSCLK");
+_Static_assert(PLL_REF_HZ * PLL_N / PLL_Q == 48000000u, "48 MHz for USB OTG FS");
+_Static_assert(APB1_HZ <= 42000000u && APB2_HZ <= 84000000u, "APB limits (DS8626)");
+/* Flash wait states for 150 < HCLK <= 168 MHz at 2.7-3.6 V (RM0090 3.5.1, Table 10). The PWR
+ * regulator is in scale 1 after reset (VOS = 1), which 168 MHz needs. */
+#define FLASH_WAIT_STATES 5u
+/* Bounded waits, in SysTick counts of the 16 MHz HSI the core runs on meanwhile: the crystal's
+ * start-up is 2 ms typical (DS8626, HSE 4-26 MHz oscillator characteristics): 100 ms is the give-up;
+ * PLL lock and the clock switch take well under a millisecond. */
+#define HSE_START_TICKS (HSI_HZ / 10u)
+#define PLL_LOCK_TICKS (HSI_HZ / 500u)
+#define RCC_WAIT_POLLS_MAX 20000000u /* also bounded by polls, should SysTick not count */
+
 #define SYSTICK_RELOAD (CORE_HZ / 1000u)
-#define HBRIDGE_PERIOD_TICKS (APB1_TIMER_HZ / BOARD_HBRIDGE_PWM_HZ) /* 4200 at 20 kHz */
 #define LSI_HZ 32000u
 
 /* NVIC numbers of the EXTI vectors (RM0090 table 61) */
@@ -103,14 +179,80 @@
 #define GPIO_PULL_UP 1u
 #define GPIO_PULL_DOWN 2u
 
-#define ECHO_LINE_FIRST 8u
-#define ECHO_NO_OWNER 0xFFu
-
 static const uint8_t s_servo_pin[HAL_SERVO_MAX] = BOARD_SERVO_PINS;
 static const uint8_t s_hbridge_pwm_pin[HAL_PWM_MAX] = BOARD_HBRIDGE_PWM_PINS;
+static const uint32_t s_hbridge_timer[HAL_PWM_MAX] = BOARD_HBRIDGE_TIMERS;
 static const uint8_t s_hbridge_dir_pin[HAL_PWM_MAX] = BOARD_HBRIDGE_DIR_PINS;
-static const uint8_t s_trigger_pin[HAL_SONAR_MAX] = BOARD_SONAR_TRIGGER_PINS;
+static const uint8_t s_trigger_pin[BOARD_SONAR_TRIGGER_COUNT] = BOARD_SONAR_TRIGGER_PINS;
+static const uint8_t s_trigger_of[HAL_SONAR_MAX] = BOARD_SONAR_TRIGGER_OF;
 static const uint8_t s_echo_pin[HAL_SONAR_MAX] = BOARD_SONAR_ECHO_PINS;
+static const uint32_t s_enc_timer[HAL_ENCODER_MAX] = BOARD_ENCODER_TIMERS;
+static const uint8_t s_enc_a_pin[HAL_ENCODER_MAX] = BOARD_ENCODER_A_PINS;
+static const uint8_t s_enc_b_pin[HAL_ENCODER_MAX] = BOARD_ENCODER_B_PINS;
+static const uint8_t s_enc_af[HAL_ENCODER_MAX] = BOARD_ENCODER_AF;
+
+/* ---- clock -------------------------------------------------------------- */
+static bool s_clock_from_hse;
+static uint32_t s_pllcfgr; /* what clock_init() wrote to RCC_PLLCFGR */
+
+/* Wait until (*reg & mask) == want, for at most `ticks` counts of SysTick on the core clock (used
+ * as a stopwatch before hal_init() starts the 1 kHz tick). */
+static bool wait_bits(volatile uint32_t *reg, uint32_t mask, uint32_t want, uint32_t ticks)
+{
+    SYST_CSR = 0u;
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0u;
+    SYST_CSR = 5u; /* processor clock, enabled, no interrupt */
+    uint32_t start = SYST_CVR;
+    for (uint32_t n = 0; n < RCC_WAIT_POLLS_MAX; n++) {
+        if ((*reg & mask) == want) {
+            return true;
+        }
+        if (((start - SYST_CVR) & 0xFFFFFFu) >= ticks) {
+            break;
+        }
+    }
+    return (*reg & mask) == want;
+}
+
+/* RCC_PLLCFGR for a 2 MHz reference from the crystal or the HSI (reserved bits kept). */
+static uint32_t pll_config(uint32_t old, bool hse)
+{
+    uint32_t f = (hse ? PLL_M_HSE : PLL_M_HSI) | (PLL_N << 6) | (((PLL_P / 2u) - 1u) << 16) | (PLL_Q << 24) |
+                 (hse ? RCC_PLLCFGR_PLLSRC_HSE : 0u);
+    return (old & ~RCC_PLLCFGR_FIELDS) | f;
+}
+
+/* Start the crystal and wait for it (bounded); then the PLL from it, or from the HSI when it did
+ * not start. Flash wait states go up first (RM0090 3.5.1: before the faster clock). With the
+ * crystal the clock security system is on (RM0090 7.2.7): a crystal that stops later switches the
+ * core to the HSI and raises the NMI, whose handler waits for the watchdog reset; that boot then
+ * takes the HSI path. The PLL's lock and the switch are waited for with bounds and not checked
+ * further (QEMU reads the RCC as 0, and a PLL that does not lock is a silicon fault). */
+static void clock_init(void)
+{
+    FLASH_ACR = FLASH_ACR_PRFTEN | FLASH_ACR_ICEN | FLASH_ACR_DCEN | FLASH_WAIT_STATES;
+    RCC_CR |= RCC_CR_HSEON;
+    bool hse = wait_bits(&RCC_CR, RCC_CR_HSERDY, RCC_CR_HSERDY, HSE_START_TICKS);
+    if (!hse) {
+        RCC_CR &= ~RCC_CR_HSEON;
+    }
+    RCC_CR &= ~RCC_CR_PLLON; /* PLLCFGR is written with the PLL off */
+    uint32_t pll = pll_config(RCC_PLLCFGR, hse);
+    RCC_PLLCFGR = pll;
+    RCC_CR |= RCC_CR_PLLON;
+    (void)wait_bits(&RCC_CR, RCC_CR_PLLRDY, RCC_CR_PLLRDY, PLL_LOCK_TICKS);
+    RCC_CFGR = (RCC_CFGR & ~RCC_CFGR_PRESCALERS) | RCC_CFGR_PPRE1_DIV4 | RCC_CFGR_PPRE2_DIV2; /* HPRE /1 */
+    RCC_CFGR = (RCC_CFGR & ~3u) | RCC_CFGR_SW_PLL;
+    (void)wait_bits(&RCC_CFGR, RCC_CFGR_SWS_MASK, RCC_CFGR_SWS_PLL, PLL_LOCK_TICKS);
+    if (hse) {
+        RCC_CR |= RCC_CR_CSSON;
+    }
+    s_clock_from_hse = hse;
+    s_pllcfgr = pll;
+}
+
+bool hal_clock_from_crystal(void) { return s_clock_from_hse; }
 
 /* ---- time --------------------------------------------------------------- */
 static volatile uint32_t s_ms;
@@ -238,19 +380,25 @@ void USART1_IRQHandler(void)
     }
 }
 
+/* 16x oversampling (OVER8 = 0, RM0090 30.3.4): USARTDIV = f_PCLK / (16 baud), held in BRR as 12.4
+ * fixed point (DIV_Mantissa, DIV_Fraction), i.e. BRR = 16 USARTDIV = f_PCLK / baud; rounded to the
+ * nearest sixteenth (a fraction that rounds up to 16 carries into the mantissa by itself). The
+ * rate is then f_PCLK / BRR: from the 84 MHz APB2 within 0.03 % of 9600..115200, 0.11 % at 230400. */
+static uint32_t usart_brr(uint32_t pclk_hz, uint32_t baud) { return (pclk_hz + baud / 2u) / baud; }
+
 void hal_uart_init(uint8_t port, uint32_t baud)
 {
-    if (port != HAL_UART_LINK || baud == 0u) {
-        return;
+    if (port != HAL_UART_LINK || baud == 0u || baud > APB2_HZ / 16u) {
+        return; /* USARTDIV below 1 cannot be set */
     }
     gpio_clocks_on();
     gpio_config(BOARD_UART_TX_PIN, GPIO_MODE_AF, GPIO_PULL_NONE, BOARD_UART_AF);
     gpio_config(BOARD_UART_RX_PIN, GPIO_MODE_AF, GPIO_PULL_UP, BOARD_UART_AF);
-    RCC_APB2ENR |= (1u << 4);
+    RCC_APB2ENR |= RCC_APB2ENR_USART1;
     (void)RCC_APB2ENR;
     s_rx_head = s_rx_tail = 0u;
     s_tx_head = s_tx_tail = 0u;
-    USART1_BRR = APB2_HZ / baud; /* 16x oversampling: mantissa.fraction in one divide */
+    USART1_BRR = usart_brr(APB2_HZ, baud);
     USART1_CR1 = (1u << 13) | (1u << 3) | (1u << 2) | USART_CR1_RXNEIE; /* UE, TE, RE, RXNEIE */
     NVIC_ISER(IRQ_USART1 >> 5) = 1u << (IRQ_USART1 & 31u);
 }
@@ -303,12 +451,12 @@ uint16_t hal_uart_read(uint8_t port, uint8_t *data, uint16_t max)
     return n;
 }
 
-/* ---- EXTI: encoders on lines 0..7, echoes on lines 8..15 ------------------ */
+/* ---- EXTI: Hall encoders on their A pins' lines, echoes on one line each ------ */
 static hal_encoder_edge_fn s_encoder_fn;
 static uint8_t s_encoder_count;
+static uint8_t s_encoder_hall; /* bit i: encoder i is a Hall wheel (EXTI on A), else timer-counted */
 static hal_echo_edge_fn s_echo_fn;
 static uint8_t s_sonar_count;
-static uint8_t s_echo_owner[16u - ECHO_LINE_FIRST]; /* sonar routed to each echo line */
 
 static void exti_route(uint8_t line, uint8_t port)
 {
@@ -328,7 +476,7 @@ static void exti_vectors_on(void)
 /* Both edges of the lines in mask, stale pending edges dropped, then unmasked. */
 static void exti_lines_on(uint32_t mask)
 {
-    RCC_APB2ENR |= (1u << 14); /* SYSCFG */
+    RCC_APB2ENR |= RCC_APB2ENR_SYSCFG;
     (void)RCC_APB2ENR;
     EXTI_RTSR |= mask;
     EXTI_FTSR |= mask;
@@ -353,24 +501,23 @@ static void exti_service(uint32_t lines)
         EXTI_SWIER = soft & ~fired;
     }
     uint32_t t_us = hal_time_us();
-    uint32_t enc = fired & BOARD_ENCODER_LINES_MASK;
-    if (enc != 0u && s_encoder_fn != 0) {
-        uint32_t idr = GPIO_IDR(BOARD_ENCODER_PORT);
+    uint32_t hall = fired & BOARD_HALL_LINES_MASK;
+    if (hall != 0u && s_encoder_fn != 0) {
         for (uint8_t i = 0; i < s_encoder_count; i++) {
-            if (enc & (3u << (2u * i))) { /* one call per encoder, even if A and B both moved */
-                uint8_t a = (uint8_t)((idr >> (2u * i)) & 1u);
-                uint8_t b = (uint8_t)((idr >> (2u * i + 1u)) & 1u);
-                s_encoder_fn(i, (uint8_t)((a << 1) | b), t_us);
+            uint8_t line = BOARD_PIN_NUM(s_enc_a_pin[i]);
+            if ((s_encoder_hall & (1u << i)) != 0u && (hall & (1u << line)) != 0u) {
+                uint8_t a = (uint8_t)((GPIO_IDR(BOARD_PIN_PORT(s_enc_a_pin[i])) >> line) & 1u);
+                s_encoder_fn(i, (uint8_t)(a << 1), t_us); /* B = 0: not sampled (hal.h) */
             }
         }
     }
     uint32_t echo = fired & BOARD_ECHO_LINES_MASK;
     if (echo != 0u && s_echo_fn != 0) {
-        for (uint8_t line = ECHO_LINE_FIRST; line < 16u; line++) {
-            uint8_t idx = s_echo_owner[line - ECHO_LINE_FIRST];
-            if ((echo & (1u << line)) && idx < s_sonar_count) {
-                uint8_t level = (uint8_t)((GPIO_IDR(BOARD_PIN_PORT(s_echo_pin[idx])) >> line) & 1u);
-                s_echo_fn(idx, level, t_us);
+        for (uint8_t i = 0; i < s_sonar_count; i++) {
+            uint8_t line = BOARD_PIN_NUM(s_echo_pin[i]);
+            if ((echo & (1u << line)) != 0u) {
+                uint8_t level = (uint8_t)((GPIO_IDR(BOARD_PIN_PORT(s_echo_pin[i])) >> line) & 1u);
+                s_echo_fn(i, level, t_us);
             }
         }
     }
@@ -384,45 +531,125 @@ void EXTI4_IRQHandler(void) { exti_service(1u << 4); }
 void EXTI9_5_IRQHandler(void) { exti_service(0x03E0u); }
 void EXTI15_10_IRQHandler(void) { exti_service(0xFC00u); }
 
-void hal_encoder_attach(uint8_t count, hal_encoder_edge_fn fn)
+/* ---- timers -------------------------------------------------------------- */
+/* TIM2..7, TIM12..14 sit on APB1 at 0x40000000 + 0x400 k with enable bit k of RCC_APB1ENR; TIM1/8 on
+ * APB2 at 0x40010000 / 0x40010400 (bits 0, 1), TIM9..11 at 0x40014000 + 0x400 k (bits 16 + k)
+ * (RM0090 2.3 memory map, 7.3.13 RCC_APB1ENR, 7.3.14 RCC_APB2ENR). */
+static bool timer_on_apb2(uint32_t base) { return base >= 0x40010000u; }
+
+static void timer_clock_on(uint32_t base)
+{
+    if (!timer_on_apb2(base)) {
+        RCC_APB1ENR |= 1u << ((base - 0x40000000u) / 0x400u);
+        (void)RCC_APB1ENR;
+    } else if (base < 0x40014000u) {
+        RCC_APB2ENR |= 1u << ((base - 0x40010000u) / 0x400u);
+        (void)RCC_APB2ENR;
+    } else {
+        RCC_APB2ENR |= 1u << (16u + (base - 0x40014000u) / 0x400u);
+        (void)RCC_APB2ENR;
+    }
+}
+
+/* ---- encoders ------------------------------------------------------------
+ * Quadrature wheels: the timer's encoder interface (RM0090 17.3.16 TIM1/8, 18.3.12 TIM2..5),
+ * SMS = 011: the counter steps on every edge of TI1FP1 and TI2FP2, up when TI1 leads TI2, with no
+ * CPU per edge. Input filter ICxF = 1100 (f_DTS / 16, N = 8) on a 42 MHz f_DTS (CKD: /2 of the
+ * 84 MHz APB1 timer clock, /4 of the 168 MHz APB2 one): a level counts after 8 equal samples
+ * 0.38 us apart, so glitches up to 3.0 us are dropped and a line's edges must be >= 3.4 us apart:
+ * up to ~290 k edges/s per line, ~580 k counts/s x4 from a 90 degree, 50 % duty encoder.
+ * Counter 16 bit (ARR 0xFFFF) on every timer; hal_encoder_poll() folds the signed 16-bit step
+ * since the previous call into the record, so it must run at least every 32767 counts.
+ * Hall wheels: A is a GPIO input (pull-up) on EXTI, both edges; the timer stays off. */
+#define ENC_CCMR1 ((1u << 0) | (0xCu << 4) | (1u << 8) | (0xCu << 12)) /* CC1S = CC2S = 01 (TI1, TI2), IC1F = IC2F = 1100 */
+static uint16_t s_enc_cnt[HAL_ENCODER_MAX]; /* CNT folded so far */
+
+static void encoder_timer_init(uint32_t base)
+{
+    TIM_REG(base, TIM_CR1) = 0u;
+    TIM_REG(base, TIM_SMCR) = TIM_SMCR_SMS_ENCODER3;
+    TIM_REG(base, TIM_CCMR1) = ENC_CCMR1;
+    TIM_REG(base, TIM_CCER) = 0u; /* CC1P = CC2P = 0: inputs not inverted; no capture */
+    TIM_REG(base, TIM_PSC) = 0u;
+    TIM_REG(base, TIM_ARR) = 0xFFFFu;
+    TIM_REG(base, TIM_EGR) = TIM_EGR_UG;
+    TIM_REG(base, TIM_CNT) = 0u;
+    TIM_REG(base, TIM_CR1) = TIM_CR1_CKD(timer_on_apb2(base) ? 2u : 1u) | TIM_CR1_CEN;
+}
+
+/* Fold a timer count into encoder i's record: the signed step since the last fold, raw-forward
+ * when A leads B (encoder_isr.h), stamped with t_us (the poll's time: the steps happened since the
+ * previous poll). */
+static void encoder_fold_count(uint8_t i, uint16_t cnt, uint32_t t_us)
+{
+    int32_t d = (int16_t)(uint16_t)(cnt - s_enc_cnt[i]);
+    s_enc_cnt[i] = cnt;
+    if ((BOARD_ENCODER_A_ON_CH2 & (1u << i)) != 0u) {
+        d = -d; /* A on TI2: the counter goes up when B leads */
+    }
+    encoder_isr_t *e = &encoder_isr_state[i];
+    uint16_t stamp = (uint16_t)(t_us >> ENCODER_STAMP_SHIFT);
+    if (d > 0) {
+        e->fwd = (uint16_t)(e->fwd + (uint16_t)d);
+        e->fwd_stamp = stamp;
+    } else if (d < 0) {
+        e->back = (uint16_t)(e->back + (uint16_t)-d);
+        e->back_stamp = stamp;
+    }
+}
+
+void hal_encoder_attach(uint8_t count, uint8_t hall_mask, hal_encoder_edge_fn fn)
 {
     if (count > HAL_ENCODER_MAX) {
         count = HAL_ENCODER_MAX;
     }
-    uint32_t mask = (1u << (2u * count)) - 1u;
     hal_irq_state_t s = hal_irq_save();
-    EXTI_IMR &= ~(uint32_t)BOARD_ENCODER_LINES_MASK;
+    EXTI_IMR &= ~(uint32_t)BOARD_HALL_LINES_MASK;
     s_encoder_fn = fn;
     s_encoder_count = fn != 0 ? count : 0u;
+    s_encoder_hall = (uint8_t)(hall_mask & ((1u << s_encoder_count) - 1u));
     gpio_clocks_on();
-    for (uint8_t line = 0; line < 2u * count; line++) {
-        /* pull-ups: open-collector Hall sensors; B of a single-channel wheel reads 1 */
-        gpio_config(BOARD_PIN(BOARD_ENCODER_PORT, line), GPIO_MODE_IN, GPIO_PULL_UP, 0u);
-        exti_route(line, BOARD_ENCODER_PORT);
+    uint32_t hall_lines = 0u;
+    for (uint8_t i = 0; i < HAL_ENCODER_MAX; i++) {
+        uint32_t base = s_enc_timer[i];
+        TIM_REG(base, TIM_CR1) = 0u; /* stopped unless counting a wheel below */
+        if (i >= s_encoder_count) {
+            continue;
+        }
+        uint8_t a = s_enc_a_pin[i];
+        if ((s_encoder_hall & (1u << i)) != 0u) {
+            gpio_config(a, GPIO_MODE_IN, GPIO_PULL_UP, 0u); /* open-collector Hall sensor */
+            gpio_config(s_enc_b_pin[i], GPIO_MODE_IN, GPIO_PULL_DOWN, 0u); /* unused: a defined 0 */
+            exti_route(BOARD_PIN_NUM(a), BOARD_PIN_PORT(a));
+            hall_lines |= 1u << BOARD_PIN_NUM(a);
+        } else {
+            timer_clock_on(base);
+            gpio_config(a, GPIO_MODE_AF, GPIO_PULL_UP, s_enc_af[i]);
+            gpio_config(s_enc_b_pin[i], GPIO_MODE_AF, GPIO_PULL_UP, s_enc_af[i]);
+            encoder_timer_init(base);
+            s_enc_cnt[i] = (uint16_t)TIM_REG(base, TIM_CNT);
+        }
     }
-    if (fn != 0 && mask != 0u) {
-        exti_lines_on(mask);
+    if (hall_lines != 0u) {
+        exti_lines_on(hall_lines);
     }
     hal_irq_restore(s);
 }
 
-/* Route the echo line of sonar idx to idx's port (its pair partner loses it). Masked while
- * switching; an edge the switch itself makes (partner high, idx low) is dropped. */
-static void echo_route(uint8_t idx)
+void hal_encoder_poll(void)
 {
-    uint8_t line = BOARD_PIN_NUM(s_echo_pin[idx]);
-    uint32_t bit = 1u << line;
-    hal_irq_state_t s = hal_irq_save();
-    if (s_echo_owner[line - ECHO_LINE_FIRST] != idx) {
-        uint32_t was_on = EXTI_IMR & bit;
-        EXTI_IMR &= ~bit;
-        exti_route(line, BOARD_PIN_PORT(s_echo_pin[idx]));
-        EXTI_PR = bit;
-        s_echo_owner[line - ECHO_LINE_FIRST] = idx;
-        EXTI_IMR |= was_on;
+    uint32_t t_us = hal_time_us();
+    for (uint8_t i = 0; i < s_encoder_count; i++) {
+        if ((s_encoder_hall & (1u << i)) == 0u) {
+            encoder_fold_count(i, (uint16_t)TIM_REG(s_enc_timer[i], TIM_CNT), t_us);
+        }
     }
-    hal_irq_restore(s);
 }
+
+/* ---- sonars --------------------------------------------------------------- */
+static uint8_t s_trigger_shared;                       /* bit t: trigger pin t fires several attached sonars */
+static uint8_t s_trigger_pulsed;                       /* bit t: s_trigger_us[t] is the time of a pulse */
+static uint32_t s_trigger_us[BOARD_SONAR_TRIGGER_COUNT];
 
 void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
 {
@@ -433,20 +660,21 @@ void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
     EXTI_IMR &= ~(uint32_t)BOARD_ECHO_LINES_MASK;
     s_echo_fn = fn;
     s_sonar_count = fn != 0 ? count : 0u;
-    memset(s_echo_owner, ECHO_NO_OWNER, sizeof s_echo_owner);
     gpio_clocks_on();
+    uint8_t used = 0u;
+    s_trigger_shared = 0u;
+    s_trigger_pulsed = 0u;
     uint32_t mask = 0u;
     for (uint8_t i = 0; i < count; i++) {
-        gpio_write(s_trigger_pin[i], false);
-        gpio_config(s_trigger_pin[i], GPIO_MODE_OUT, GPIO_PULL_NONE, 0u);
+        uint8_t t = s_trigger_of[i];
+        s_trigger_shared = (uint8_t)(s_trigger_shared | (used & (1u << t)));
+        used = (uint8_t)(used | (1u << t));
+        gpio_write(s_trigger_pin[t], false);
+        gpio_config(s_trigger_pin[t], GPIO_MODE_OUT, GPIO_PULL_NONE, 0u);
         /* pull-down: an unplugged sensor reads a steady 0, not a floating line */
         gpio_config(s_echo_pin[i], GPIO_MODE_IN, GPIO_PULL_DOWN, 0u);
-        uint8_t line = BOARD_PIN_NUM(s_echo_pin[i]);
-        if (s_echo_owner[line - ECHO_LINE_FIRST] == ECHO_NO_OWNER) { /* lower idx first */
-            s_echo_owner[line - ECHO_LINE_FIRST] = i;
-            exti_route(line, BOARD_PIN_PORT(s_echo_pin[i]));
-        }
-        mask |= 1u << line;
+        exti_route(BOARD_PIN_NUM(s_echo_pin[i]), BOARD_PIN_PORT(s_echo_pin[i]));
+        mask |= 1u << BOARD_PIN_NUM(s_echo_pin[i]);
     }
     if (fn != 0 && mask != 0u) {
         exti_lines_on(mask);
@@ -456,35 +684,54 @@ void hal_sonar_attach(uint8_t count, hal_echo_edge_fn fn)
 
 void hal_sonar_poll(void) {} /* the EXTI handler calls the hook itself */
 
+/* 10 us on sonar idx's trigger pin. A pin shared by several attached sonars (board.h) is pulsed
+ * once per group firing: a call within BOARD_SONAR_TRIGGER_SHARED_US of its last pulse returns,
+ * the sonar having fired with that pulse. */
 void hal_sonar_trigger(uint8_t idx)
 {
     if (idx >= HAL_SONAR_MAX) {
         return;
     }
-    if (idx < s_sonar_count) {
-        echo_route(idx);
+    uint8_t t = s_trigger_of[idx];
+    uint8_t bit = (uint8_t)(1u << t);
+    uint32_t now = hal_time_us();
+    if ((s_trigger_shared & s_trigger_pulsed & bit) != 0u &&
+        (uint32_t)(now - s_trigger_us[t]) < BOARD_SONAR_TRIGGER_SHARED_US) {
+        return;
     }
-    gpio_write(s_trigger_pin[idx], true);
+    s_trigger_pulsed = (uint8_t)(s_trigger_pulsed | bit);
+    s_trigger_us[t] = now;
+    gpio_write(s_trigger_pin[t], true);
     hal_delay_us(BOARD_SONAR_TRIGGER_US);
-    gpio_write(s_trigger_pin[idx], false);
+    gpio_write(s_trigger_pin[t], false);
 }
 
-/* ---- actuators ---------------------------------------------------------- */
+/* ---- actuators ------------------------------------------------------------
+ * Servo / ESC on TIM9 (APB2, 168 MHz timer clock): PSC 167 -> 1 MHz, ARR 19999 -> 50 Hz.
+ * H-bridges on TIM10 / TIM11 (APB2): PSC 0, 8400 ticks -> 20 kHz. PWM mode 1 with preload. */
+#define SERVO_TIMER BOARD_TIM9_BASE
+#define SERVO_TIMER_HZ APB2_TIMER_HZ
+#define SERVO_PRESCALER (SERVO_TIMER_HZ / 1000000u)
+#define HBRIDGE_TIMER_HZ APB2_TIMER_HZ
+#define HBRIDGE_PERIOD_TICKS (HBRIDGE_TIMER_HZ / BOARD_HBRIDGE_PWM_HZ) /* 8400 at 20 kHz */
+_Static_assert(SERVO_TIMER_HZ % 1000000u == 0u && SERVO_PRESCALER <= 65536u, "1 us servo ticks");
+_Static_assert(HBRIDGE_PERIOD_TICKS <= 65536u, "16-bit H-bridge period");
+
+static uint32_t servo_ccr(uint16_t pulse_us)
+{
+    return pulse_us < 800u ? 800u : pulse_us > 2200u ? 2200u : pulse_us; /* 1 MHz timer: ticks = us */
+}
+
 void hal_servo_write_us(uint8_t channel, uint16_t pulse_us)
 {
-    if (pulse_us < 800u) {
-        pulse_us = 800u;
-    } else if (pulse_us > 2200u) {
-        pulse_us = 2200u;
-    }
     if (channel == HAL_SERVO_STEER) {
-        TIM_REG(TIM3_BASE, TIM_CCR1) = pulse_us; /* 1 MHz timer: ticks = us */
+        TIM_REG(SERVO_TIMER, TIM_CCR1) = servo_ccr(pulse_us);
     } else if (channel == HAL_SERVO_THROTTLE) {
-        TIM_REG(TIM3_BASE, TIM_CCR2) = pulse_us;
+        TIM_REG(SERVO_TIMER, TIM_CCR2) = servo_ccr(pulse_us);
     }
 }
 
-/* duty 255 = the whole period (CCR = ARR + 1: output always on in PWM mode 1). */
+/* duty 255 = the whole period (CCR = ARR + 1: output always on in PWM mode 1); 0: always off. */
 static uint32_t hbridge_ccr(uint8_t duty) { return (uint32_t)duty * HBRIDGE_PERIOD_TICKS / 255u; }
 
 void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse)
@@ -493,29 +740,37 @@ void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse)
         return;
     }
     gpio_write(s_hbridge_dir_pin[channel], reverse);
-    TIM_REG(TIM4_BASE, channel == 0u ? TIM_CCR1 : TIM_CCR2) = hbridge_ccr(duty);
+    TIM_REG(s_hbridge_timer[channel], TIM_CCR1) = hbridge_ccr(duty);
 }
 
-/* PWM mode 1 with preload on CH1 and CH2, outputs enabled, counter on (RM0090 18.4.7..). */
-static void pwm_timer_init(uint32_t base, uint32_t prescaler, uint32_t period_ticks, uint32_t ccr)
+/* PWM mode 1 with preload on CH1 (and CH2 when two_channels), outputs enabled, counter on
+ * (RM0090 19.4: TIM9 has CH1/CH2, TIM10/11 CH1 only). */
+static void pwm_timer_init(uint32_t base, bool two_channels, uint32_t prescaler, uint32_t period_ticks, uint32_t ccr)
 {
+    timer_clock_on(base);
     TIM_REG(base, TIM_CR1) = 0u;
     TIM_REG(base, TIM_PSC) = prescaler - 1u;
     TIM_REG(base, TIM_ARR) = period_ticks - 1u;
     TIM_REG(base, TIM_CCR1) = ccr;
-    TIM_REG(base, TIM_CCR2) = ccr;
-    TIM_REG(base, TIM_CCMR1) = (6u << 4) | (1u << 3) | (6u << 12) | (1u << 11); /* OC1M, OC1PE, OC2M, OC2PE */
-    TIM_REG(base, TIM_CCER) = (1u << 0) | (1u << 4);                         /* CC1E, CC2E */
-    TIM_REG(base, TIM_EGR) = 1u;                                             /* UG: load PSC, ARR, CCRs */
-    TIM_REG(base, TIM_CR1) = (1u << 7) | 1u;                                 /* ARPE, CEN */
+    uint32_t ccmr = (6u << 4) | (1u << 3); /* OC1M = PWM mode 1, OC1PE */
+    uint32_t ccer = 1u << 0;               /* CC1E */
+    if (two_channels) {
+        TIM_REG(base, TIM_CCR2) = ccr;
+        ccmr |= (6u << 12) | (1u << 11); /* OC2M, OC2PE */
+        ccer |= 1u << 4;                 /* CC2E */
+    }
+    TIM_REG(base, TIM_CCMR1) = ccmr;
+    TIM_REG(base, TIM_CCER) = ccer;
+    TIM_REG(base, TIM_EGR) = TIM_EGR_UG; /* load PSC, ARR, CCRs */
+    TIM_REG(base, TIM_CR1) = TIM_CR1_ARPE | TIM_CR1_CEN;
 }
 
 static void actuators_init(void)
 {
-    RCC_APB1ENR |= (1u << 1) | (1u << 2); /* TIM3, TIM4 */
-    (void)RCC_APB1ENR;
-    pwm_timer_init(TIM3_BASE, APB1_TIMER_HZ / 1000000u, BOARD_SERVO_PERIOD_US, 1500u);
-    pwm_timer_init(TIM4_BASE, 1u, HBRIDGE_PERIOD_TICKS, 0u);
+    pwm_timer_init(SERVO_TIMER, true, SERVO_PRESCALER, BOARD_SERVO_PERIOD_US, 1500u);
+    for (uint8_t i = 0; i < HAL_PWM_MAX; i++) {
+        pwm_timer_init(s_hbridge_timer[i], false, 1u, HBRIDGE_PERIOD_TICKS, 0u);
+    }
     for (uint8_t i = 0; i < HAL_SERVO_MAX; i++) {
         gpio_config(s_servo_pin[i], GPIO_MODE_AF, GPIO_PULL_NONE, BOARD_SERVO_AF);
     }
@@ -672,9 +927,20 @@ void hal_watchdog_start(uint16_t timeout_ms)
 
 void hal_watchdog_kick(void) { IWDG_KR = 0xAAAAu; }
 
-/* RCC_CSR reset flags (RM0090 6.3.21), read once and cleared (RMVF) on the first call, which
- * main makes at boot. Every reset drives NRST, so PINRSTF alone means the pin; POR sets BORRSTF
- * too. QEMU does not model the RCC (reads 0): taken as a power-on. */
+/* The cause from RCC_CSR's reset flags (RM0090 7.3.21). Every reset drives NRST, so PINRSTF alone
+ * means the pin; a power-on sets BORRSTF too. */
+static hal_reset_cause_t reset_cause_of(uint32_t csr)
+{
+    if (csr & (RCC_CSR_IWDGRSTF | RCC_CSR_WWDGRSTF)) return HAL_RESET_WATCHDOG;
+    if (csr & RCC_CSR_PORRSTF) return HAL_RESET_POWER_ON;
+    if (csr & RCC_CSR_BORRSTF) return HAL_RESET_BROWN_OUT; /* BOR without POR */
+    if (csr & (RCC_CSR_SFTRSTF | RCC_CSR_LPWRRSTF)) return HAL_RESET_OTHER;
+    if (csr & RCC_CSR_PINRSTF) return HAL_RESET_EXTERNAL;
+    return HAL_RESET_POWER_ON;
+}
+
+/* Read once and cleared (RMVF) on the first call, which main makes at boot. QEMU does not model
+ * the RCC (reads 0): taken as a power-on. */
 hal_reset_cause_t hal_reset_cause(void)
 {
     static uint32_t s_csr;
@@ -682,32 +948,16 @@ hal_reset_cause_t hal_reset_cause(void)
     if (!s_read) {
         s_read = true;
         s_csr = RCC_CSR;
-        RCC_CSR |= (1u << 24); /* RMVF */
+        RCC_CSR |= RCC_CSR_RMVF;
     }
-    if (s_csr & ((1u << 29) | (1u << 30))) return HAL_RESET_WATCHDOG; /* IWDG, WWDG */
-    if (s_csr & (1u << 27)) return HAL_RESET_POWER_ON;                /* POR */
-    if (s_csr & (1u << 25)) return HAL_RESET_BROWN_OUT;               /* BOR without POR */
-    if (s_csr & (1u << 28)) return HAL_RESET_OTHER;                   /* software */
-    if (s_csr & (1u << 26)) return HAL_RESET_EXTERNAL;                /* NRST pin */
-    return HAL_RESET_POWER_ON;
+    return reset_cause_of(s_csr);
 }
 
 /* ---- init --------------------------------------------------------------- */
-/* HSI 16 MHz / M 16 * N 336 / P 2 = 168 MHz; APB2 /2, APB1 /4. QEMU does not model
- * the RCC (its core clock is fixed at 168 MHz), so every wait is bounded. */
-static void clock_init(void)
-{
-    FLASH_ACR = (1u << 8) | (1u << 9) | (1u << 10) | 5u; /* prefetch, caches, 5 wait states */
-    RCC_PLLCFGR = 16u | (336u << 6) | (0u << 16) | (7u << 24); /* M, N, P=2, Q=7, source HSI */
-    RCC_CR |= (1u << 24);                                      /* PLLON */
-    for (uint32_t i = 0; i < 100000u && (RCC_CR & (1u << 25)) == 0u; i++) {
-    }
-    RCC_CFGR = (5u << 10) | (4u << 13) | 2u; /* PPRE1 = /4, PPRE2 = /2, SW = PLL */
-}
-
 void hal_init(void)
 {
     clock_init();
+    SYST_CSR = 0u;
     SYST_RVR = SYSTICK_RELOAD - 1u;
     SYST_CVR = 0u;
     SYST_CSR = 7u; /* core clock, interrupt, enable */

@@ -2,9 +2,12 @@
 
 Three kinds of board, told apart by board.json's build.target:
   avr     ATmega2560 with Debian's gcc-avr / avr-libc; `-t upload` flashes with avrdude
-  arm     STM32F405 with Debian's gcc-arm-none-eabi / newlib; boots under QEMU netduinoplus2
+  arm     STM32F405 with Debian's gcc-arm-none-eabi / newlib; `-t upload` flashes the ELF with
+          OpenOCD through an ST-Link (SWD); boots under QEMU netduinoplus2
   native  the host gcc, for unit tests and the software-in-the-loop build
 """
+import os
+import shutil
 from os.path import join
 
 from SCons.Script import AlwaysBuild, Builder, Default, DefaultEnvironment
@@ -96,12 +99,33 @@ elif target == "arm":
             "-Os", "-Wl,--gc-sections", "-nostartfiles", "--specs=nano.specs",
         ],
         LIBS=["c", "m", "gcc", "nosys"],
+        # Raw images for USB DFU recovery (docs/stm32.md), one per flash region the ELF loads: the
+        # vectors (sector 0) and the code from sector 3 on. A single objcopy image would span the
+        # gap between them, the emulated EEPROM in sectors 1-2, as zeros.
         BUILDERS=dict(
-            ElfToBin=Builder(
-                action=env.VerboseAction("$OBJCOPY -O binary $SOURCES $TARGET", "Building $TARGET"),
+            ElfToVectorsBin=Builder(
+                action=env.VerboseAction("$OBJCOPY -O binary -j .isr_vector $SOURCES $TARGET",
+                                         "Building $TARGET"),
                 suffix=".bin",
-            )
+            ),
+            ElfToCodeBin=Builder(
+                action=env.VerboseAction("$OBJCOPY -O binary -R .isr_vector $SOURCES $TARGET",
+                                         "Building $TARGET"),
+                suffix=".bin",
+            ),
         ),
+    )
+    # Upload (board upload.protocol "stlink"): OpenOCD's `program` writes the ELF's loadable
+    # segments only, erasing just the sectors they cover (flash write_image erase), so the EEPROM
+    # sectors 1-2 between the vectors and the code keep calibration, parameters and the signing
+    # key. AGNAV_OPENOCD names another openocd binary (tests point it at a recorder).
+    env.Replace(
+        UPLOADER=os.environ.get("AGNAV_OPENOCD", "openocd"),
+        UPLOADERFLAGS=[
+            "-f", board.get("upload.openocd_interface", "interface/stlink.cfg"),
+            "-f", board.get("upload.openocd_target", "target/stm32f4x.cfg"),
+        ],
+        UPLOADCMD='$UPLOADER $UPLOADERFLAGS -c "program {$SOURCE} verify reset exit"',
     )
 else:
     env.Replace(PROGNAME="program", SIZETOOL="size", SIZEPRINTCMD="$SIZETOOL $SOURCES")
@@ -132,7 +156,30 @@ if target == "avr":
         "Upload",
     )
 elif target == "arm":
-    default_targets.append(env.ElfToBin(join("$BUILD_DIR", "${PROGNAME}"), target_elf))
+    default_targets.append(env.ElfToVectorsBin(join("$BUILD_DIR", "${PROGNAME}.vectors.bin"), target_elf))
+    default_targets.append(env.ElfToCodeBin(join("$BUILD_DIR", "${PROGNAME}.code.bin"), target_elf))
+
+    def check_uploader(target, source, env):  # noqa: ARG001 (SCons action signature)
+        protocol = env.subst("$UPLOAD_PROTOCOL")
+        if protocol != "stlink":
+            print(f"upload_protocol {protocol!r}: this board uploads with 'stlink' (OpenOCD, docs/stm32.md)")
+            return 1
+        tool = env.subst("$UPLOADER")
+        if shutil.which(tool) is None:
+            print(f"{tool}: not found. Install OpenOCD (Debian: sudo apt-get install openocd) and connect "
+                  "an ST-Link to the board's SWD pins (docs/stm32.md).")
+            return 1
+        return 0
+
+    env.AddPlatformTarget(
+        "upload",
+        target_elf,
+        [
+            env.VerboseAction(check_uploader, "Checking $UPLOADER"),
+            env.VerboseAction("$UPLOADCMD", "Uploading $SOURCE"),
+        ],
+        "Upload",
+    )
 
 env.AddPlatformTarget(
     "size", target_elf, env.VerboseAction("$SIZEPRINTCMD", "Calculating size $SOURCE"),
