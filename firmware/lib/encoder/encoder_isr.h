@@ -1,10 +1,13 @@
 /*
  * The encoder interrupt record: what an edge handler writes and nothing more.
- * Two writers keep it, with identical rules:
+ * Three writers keep it, with identical rules:
  *   - encoder_isr_edge() (encoder.c), the generic hal_encoder_edge_fn hook of the
  *     sim and STM32 backends;
  *   - the ATmega2560's PORTK pin-change vector, hand-written in assembly
- *     (hal/avr/encoder_pcint_avr.S), which decodes all four encoders in one vector.
+ *     (hal/avr/encoder_pcint_avr.S), which decodes all four encoders in one vector;
+ *   - hal_encoder_poll() of the STM32 backend, in loop context, for wheels its timers
+ *     count in encoder mode: the counter's step since the last poll, stamped with the
+ *     poll time (no illegal jumps: errors stays 0).
  * The loop side (encoder_update(), encoder_snapshot()) folds the record into
  * 32-bit counts, travel, times and speed; only it knows modes, inversion and
  * the Hall direction hint.

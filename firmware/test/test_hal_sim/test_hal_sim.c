@@ -88,6 +88,21 @@ static void test_sim_encoder_edge_reaches_hook_with_time(void)
     TEST_ASSERT_EQUAL_UINT8(1u, s_calls);
 }
 
+/* hal.h: a Hall wheel's B reads 0, whatever the world sets its B line to; quadrature wheels see both. */
+static void test_sim_encoder_hall_wheel_hook_sees_b_as_0(void)
+{
+    hal_encoder_attach(2u, 0x01u, on_edge); /* wheel 0 Hall, wheel 1 quadrature */
+    sim_encoder_edge(0u, 3u);
+    TEST_ASSERT_EQUAL_UINT8(0u, s_last_idx);
+    TEST_ASSERT_EQUAL_HEX8_MESSAGE(2u, s_last_ab, "A high, B masked");
+    sim_encoder_edge(0u, 1u);
+    TEST_ASSERT_EQUAL_HEX8(0u, s_last_ab);
+    sim_encoder_edge(1u, 3u);
+    TEST_ASSERT_EQUAL_UINT8(1u, s_last_idx);
+    TEST_ASSERT_EQUAL_HEX8(3u, s_last_ab);
+    TEST_ASSERT_TRUE(hal_clock_from_crystal());
+}
+
 static void test_sim_irq_save_restore_nests(void)
 {
     hal_irq_state_t outer = hal_irq_save();
@@ -106,6 +121,7 @@ int main(void)
     RUN_TEST(test_sim_uart_round_trip_keeps_byte_order);
     RUN_TEST(test_sim_eeprom_starts_erased_and_keeps_writes);
     RUN_TEST(test_sim_encoder_edge_reaches_hook_with_time);
+    RUN_TEST(test_sim_encoder_hall_wheel_hook_sees_b_as_0);
     RUN_TEST(test_sim_irq_save_restore_nests);
     return UNITY_END();
 }

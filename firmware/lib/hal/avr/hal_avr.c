@@ -1,6 +1,6 @@
 /* ATmega2560 backend of the AgNav HAL. Pin map: board.h. Unit-test builds link the sim HAL; this
- * file is compiled there only by test/test_hal_avr_uart and test/test_hal_avr_pwm, under other names
- * (AGNAV_HAL_AVR_UNDER_TEST). */
+ * file is compiled there only by test/test_hal_avr_uart, test/test_hal_avr_pwm and
+ * test/test_hal_avr_encoder, under other names (AGNAV_HAL_AVR_UNDER_TEST). */
 #if defined(__AVR__) && (!defined(PIO_UNIT_TESTING) || defined(AGNAV_HAL_AVR_UNDER_TEST))
 
 #include "../hal.h"
@@ -209,13 +209,11 @@ void hal_encoder_attach(uint8_t count, uint8_t hall_mask, hal_encoder_edge_fn fn
     SREG = sreg;
 }
 
-#ifndef AGNAV_HAL_AVR_UNDER_TEST /* suites that compile this file take these two from the sim HAL */
 /* Every encoder edge goes through the PORTK vector: no hardware counter to fold. */
 void hal_encoder_poll(void) {}
 
 /* The fuses select the board's 16 MHz crystal; the ATmega2560 has no clock fallback. */
 bool hal_clock_from_crystal(void) { return true; }
-#endif
 
 /* ---- sonar ring: triggers on PORTA/PORTC, echoes on PCINT0 + INT0..3 ---
  * The echo vectors (echo_pcint_avr.S, one body for all five) only queue (PINB, PIND, TCNT5)

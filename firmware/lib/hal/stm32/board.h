@@ -11,7 +11,7 @@
  *   PC12           status LED (green, on when low)
  *   PA11 / PA12    USB OTG FS D- / D+ (also the ROM bootloader's DFU port)
  *   PC4            USB VBUS sense (through a divider)
- *   PC11           USB D+ pull-up switch ("USB DISC")
+ *   PC11           "USB DISC", the USB disconnect line (EXT1 header label)
  *   PH0 / PH1      8 MHz HSE crystal;  PC14 / PC15  32.768 kHz LSE crystal
  *   PA13 / PA14    SWDIO / SWCLK;  PA15, PB3, PB4  JTAG TDI, TDO/SWO, nTRST on the same connector
  *   PB2            BOOT1
@@ -112,8 +112,6 @@
 #define BOARD_ENCODER_B_PINS {BOARD_PA(5), BOARD_PA(6), BOARD_PB(7), BOARD_PC(6)}
 #define BOARD_ENCODER_AF {1u, 2u, 2u, 3u}
 #define BOARD_ENCODER_A_ON_CH2 0x0Bu /* encoders 0, 1, 3 */
-/* Timers on APB2 (TIM8): their kernel clock is twice APB2's, the APB1 ones twice APB1's. */
-#define BOARD_ENCODER_ON_APB2 0x08u
 
 #define BOARD_SERVO_PINS {BOARD_PA(2), BOARD_PA(3)} /* TIM9 CH1, CH2 */
 #define BOARD_SERVO_AF 3u
