@@ -167,6 +167,7 @@ class ServeOptions:
     lasers: tuple[tuple[str, int | None], ...] = ()  # (kind, port) of the horizontal scanner, then the tilted one
     out_dir: str | None = None  # the truth of the run: truth.csv, summary.json, run_info.json
     stop_at_end: bool = False  # stop serving once the referee ends the run (arrived, collision, fell in a hole)
+    end_grace_s: float = 5.0  # with stop_at_end: keep serving this long (sim s) for a TCP client to see the end itself
     host_config: str | None = None  # write the robot side's host config (robot, field, lasers) here
     movers_wait: bool = False  # the scenario's walkers wait at their first waypoint until the host drives
 
@@ -277,6 +278,8 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
 
         s.on_downlink = to_clients
         referee_said = [False]
+        ended_at_s: float | None = None
+        client_after_end = False
         held = list(sc.world.movers) if opt.movers_wait else []
         if held:  # the walkers' scripts start when the host does, as in a scenario run (not when serving began)
             from dataclasses import replace as _replace
@@ -332,9 +335,12 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                                   referee.goal_index))
                 if referee.judge(s.t_s, r, cl) is not None and not referee_said[0]:
                     referee_said[0] = True
+                    ended_at_s = s.t_s
                     log(f"agnav sil: referee: {referee.reason} at t = {s.t_s:.2f} s")
-                    if opt.stop_at_end:
-                        break
+                if opt.stop_at_end and ended_at_s is not None:
+                    client_after_end = client_after_end or client is not None
+                    if (client_after_end and client is None) or s.t_s - ended_at_s >= opt.end_grace_s:
+                        break  # the robot side has seen the end and hung up, or had its grace period
                 lag = (s.t_us - t0) * 1e-6 / opt.speedup - (time.monotonic() - wall0)
                 if lag > 0:
                     time.sleep(lag)
