@@ -544,6 +544,8 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         return []
     from pathlib import Path
 
+    from agnav_host.viz.world_plot import draw_goals, draw_world
+
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     written = []
 
@@ -557,11 +559,7 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
         rut = sc.world.ruts[0]
         mid = np.asarray(rut.points)
         fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 6), gridspec_kw={"height_ratios": [2, 1]})
-        tan = np.gradient(mid, axis=0)
-        nrm = np.column_stack((-tan[:, 1], tan[:, 0])) / np.hypot(tan[:, 0], tan[:, 1])[:, None]
-        for off in (-rut.spacing_m / 2, rut.spacing_m / 2):
-            g = mid + off * nrm
-            ax.fill_between(g[:, 0], g[:, 1] - rut.width_m / 2, g[:, 1] + rut.width_m / 2, color="0.8", lw=0)
+        draw_world(ax, sc, legend_entries=False)
         ax.plot(mid[:, 0], mid[:, 1], "k--", lw=0.8, label="midline (world)")
         for r in ruts:
             tr = r["traj"]  # type: ignore[index]
@@ -569,26 +567,21 @@ def save_plots(out_dir: str, ruts: list[dict[str, object]] | None, holes: list[d
             e = signed_offset_m(tr[:, 1], tr[:, 2], mid)  # type: ignore[index]
             ax2.plot(tr[:, 1], 100 * e, lw=0.8)  # type: ignore[index]
         ax2.axvline(RUTS_SETTLE_X_M, color="0.5", lw=0.6)
-        ax.set_aspect("equal")
         ax.legend(fontsize=6, ncol=3)
-        ax.set_title("ruts: rut following with the tilted laser (grey: the ruts)")
+        ax.set_title("ruts: rut following with the tilted laser (brown: the ruts)")
         ax2.set_xlabel("x, m")
         ax2.set_ylabel("lateral error, cm")
         save(fig, "ruts.png")
     if holes:
         sc = load_scenario("hole_field")
         fig, ax = plt.subplots(figsize=(9, 5))
-        xx, yy = np.meshgrid(np.arange(-1, 26, 0.05), np.arange(-6, 6, 0.05))
-        z = sc.world.ground_height_m(xx, yy)
-        ax.contourf(xx, yy, z, levels=[-3, -0.1, 0.05, 1], colors=["0.3", "white", "0.85"])
+        draw_world(ax, sc)
+        draw_goals(ax, sc.goals, sc.start)
         for r in holes:
             tr = r["traj"]  # type: ignore[index]
-            ax.plot(tr[:, 1], tr[:, 2], lw=0.8, label=f"seed {r['seed']} ({r['end']})")  # type: ignore[index]
-        g = sc.goals[-1]
-        ax.plot(g.x_m, g.y_m, "r*", ms=10)
-        ax.set_aspect("equal")
-        ax.legend(fontsize=6)
-        ax.set_title("hole_field: goal seeking with GroundGuard (dark: holes; light: kerb)")
+            ax.plot(tr[:, 1], tr[:, 2], lw=0.8, label=f"seed {r['seed']} ({r['end']})", zorder=4)  # type: ignore[index]
+        ax.legend(fontsize=6, ncol=2)
+        ax.set_title("hole_field: goal seeking with GroundGuard")
         save(fig, "hole_field.png")
     if proximity:
         fig, axes = plt.subplots(len(proximity), 1, figsize=(10, 1.6 * len(proximity) + 0.8), sharex=True, squeeze=False)

@@ -21,6 +21,7 @@
 #include "sched.h"
 #include "signing.h"
 #include "sonar_ring.h"
+#include "storage.h"
 
 #define WATCHDOG_TIMEOUT_MS 250u
 #define KEY_PROVISION_WINDOW_MS 10000u /* unsigned SETUP_SIGNING accepted this long after a power-on */
@@ -136,6 +137,39 @@ static void send(mavlink_message_t *msg) { (void)link_send(msg); }
 
 /* ---- tasks ---------------------------------------------------------------------------------- */
 /* AGNAV_CALIB_TABLE (write) and AGNAV_CALIB_REQUEST (read / save / defaults), from link_poll(). */
+/* The records lib/storage writes (map in storage.h). */
+void storage_record_slots(uint8_t record, uint16_t *main_addr, uint16_t *copy_addr, uint16_t *len)
+{
+    if (record == STORAGE_PARAMS) {
+        *main_addr = PARAMS_EEPROM_ADDR;
+        *copy_addr = PARAMS_COPY_ADDR;
+        *len = params_record_bytes();
+    } else if (record == STORAGE_CALIB) {
+        *main_addr = CALIB_EEPROM_ADDR;
+        *copy_addr = CALIB_COPY_ADDR;
+        *len = CALIB_RECORD_BYTES;
+    } else {
+        *main_addr = SIGNING_KEY_ADDR;
+        *copy_addr = SIGNING_KEY_COPY_ADDR;
+        *len = SIGNING_KEY_RECORD_BYTES;
+    }
+}
+
+uint8_t storage_record_byte(uint8_t record, uint16_t pos)
+{
+    return record == STORAGE_PARAMS ? params_record_byte(pos)
+           : record == STORAGE_CALIB ? calib_record_byte(pos) : signing_key_record_byte(pos);
+}
+
+static uint8_t s_calib_save_id; /* table id of the save request in progress (echoed in its final ack) */
+
+static void send_calib_ack(uint8_t id, uint8_t result)
+{
+    mavlink_message_t msg;
+    mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, id, result, 255u, s_out.failsafe_flags);
+    send(&msg);
+}
+
 static void on_calib(const mavlink_message_t *in)
 {
     mavlink_message_t msg;
@@ -158,7 +192,9 @@ static void on_calib(const mavlink_message_t *in)
         uint8_t action = mavlink_msg_agnav_calib_request_get_action(in);
         calib_table_t t;
         if (action == AGNAV_CALIB_ACTION_SAVE) {
-            result = link_calib_result(calib_save());
+            storage_request(STORAGE_CALIB); /* the final answer comes from task_link when it is written */
+            s_calib_save_id = id;
+            result = AGNAV_CALIB_IN_PROGRESS;
         } else if (action == AGNAV_CALIB_ACTION_DEFAULTS) {
             result = calib_get_default(id, &t) ? link_calib_result(calib_set_table(id, &t)) : AGNAV_CALIB_BAD_TABLE;
         } else if (calib_get_table(id, &t)) {
@@ -171,8 +207,7 @@ static void on_calib(const mavlink_message_t *in)
             result = AGNAV_CALIB_BAD_TABLE;
         }
     }
-    mavlink_msg_agnav_calib_ack_pack(link_sysid(), link_compid(), &msg, id, result, 255u, s_out.failsafe_flags);
-    send(&msg);
+    send_calib_ack(id, result);
 }
 
 static uint8_t s_param_changes; /* params_changes() when the modules last took the values */
@@ -196,6 +231,17 @@ static void task_link(void)
 {
     signing_set_sign_telemetry(p_sign_telem != 0u); /* SIGN_TELEM applies at once */
     link_poll(hal_time_ms());
+    storage_tick(); /* a saved record, a byte at a time: never waits for the EEPROM */
+    uint8_t failed;
+    uint8_t done = storage_take_done(&failed);
+    if (done != 0u) {
+        link_storage_done(done, failed);
+        if ((done & STORAGE_BIT(STORAGE_CALIB)) != 0u) {
+            bool ok = (failed & STORAGE_BIT(STORAGE_CALIB)) == 0u;
+            calib_saved(ok);
+            send_calib_ack(s_calib_save_id, ok ? AGNAV_CALIB_ACCEPTED : AGNAV_CALIB_STORAGE_ERROR);
+        }
+    }
     apply_params();
     link_state_t *ls = link_state();
     if (ls->arm_request) {
@@ -637,7 +683,8 @@ void agnav_setup(void)
     s_frame_ms = hal_time_ms();
     defaults();
     params_init(PARAMS, (uint16_t)PARAM_COUNT);
-    params_result_t params_rc = params_load(PARAMS_EEPROM_ADDR);
+    storage_init();
+    params_result_t params_rc = params_load();
     s_params_corrupt = params_rc == PARAMS_CORRUPT;
 
     calib_init();

@@ -27,7 +27,8 @@
 #define hal_pwm_write_duty avr_hal_pwm_write_duty
 #define hal_eeprom_size avr_hal_eeprom_size
 #define hal_eeprom_read avr_hal_eeprom_read
-#define hal_eeprom_write avr_hal_eeprom_write
+#define hal_eeprom_write_byte avr_hal_eeprom_write_byte
+#define hal_eeprom_busy avr_hal_eeprom_busy
 #define hal_eeprom_idle avr_hal_eeprom_idle
 #define hal_watchdog_start avr_hal_watchdog_start
 #define hal_watchdog_kick avr_hal_watchdog_kick

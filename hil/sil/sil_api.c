@@ -9,8 +9,13 @@
 #include "params.h"
 #include "signing.h"
 #include "sim/hal_sim.h"
+#include "storage.h"
 
 #include "sil_eeprom_map.h" /* after the firmware headers: checked against them */
+
+/* Programming time of one EEPROM byte in the native SIL: the ATmega2560's (datasheet table 8-2:
+ * 3.3 ms), so a save takes as long as on the board and the control tick is measured during it. */
+#define SIL_EEPROM_WRITE_US 3300u
 
 void agnav_setup(void);
 void agnav_loop_once(void);
@@ -113,6 +118,7 @@ void sil_init(void)
     S.tick_us = 100u;
     S.stop_on_trigger = 1;
     sim_reset();
+    sim_eeprom_set_write_us(SIL_EEPROM_WRITE_US);
     sim_sonar_on_trigger(on_trigger);
 }
 
@@ -297,11 +303,29 @@ int sil_param_get(const char *name, int32_t *out)
     return 0;
 }
 
-int sil_param_save(void) { return (int)params_save(SIL_EEPROM_PARAMS_ADDR); }
+/* Before the clock runs (a host writing parameters for the next boot): lib/storage's writer to the end,
+ * each byte's programming time skipped. */
+int sil_param_save(void)
+{
+    storage_request(STORAGE_PARAMS);
+    while (storage_pending(STORAGE_PARAMS)) {
+        sim_eeprom_settle();
+        storage_tick();
+    }
+    uint8_t failed;
+    (void)storage_take_done(&failed);
+    return (failed & STORAGE_BIT(STORAGE_PARAMS)) != 0u ? -1 : 0;
+}
 uint32_t sil_eeprom_size(void) { return hal_eeprom_size(); }
 void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len) { hal_eeprom_read((uint16_t)addr, dst, (uint16_t)len); }
-void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len) { hal_eeprom_write((uint16_t)addr, src, (uint16_t)len); }
+void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len)
+{
+    for (uint32_t i = 0; i < len && addr + i < SIM_EEPROM_SIZE; i++) {
+        sim_eeprom_bytes()[addr + i] = src[i];
+    }
+}
 uint32_t sil_eeprom_idle_calls(void) { return sim_eeprom_idle_calls(); }
+uint32_t sil_eeprom_writes(void) { return sim_eeprom_writes(); }
 
 /* ---- fault injection (sil_api.h) ------------------------------------------------------------- */
 int sil_fault_encoder(uint8_t idx, int mode)
@@ -344,6 +368,7 @@ void sil_fault_reset(int cause)
     static uint8_t keep[SIM_EEPROM_SIZE];
     memcpy(keep, sim_eeprom_bytes(), SIM_EEPROM_SIZE);
     sim_reset(); /* pins, UART buffers, timers: what a core reset clears */
+    sim_eeprom_set_write_us(SIL_EEPROM_WRITE_US);
     memcpy(sim_eeprom_bytes(), keep, SIM_EEPROM_SIZE);
     sim_sonar_on_trigger(on_trigger);
     sim_set_reset_cause((hal_reset_cause_t)cause);

@@ -112,6 +112,7 @@ void sil_eeprom_read(uint32_t addr, uint8_t *dst, uint32_t len);
 void sil_eeprom_write(uint32_t addr, const uint8_t *src, uint32_t len);
 /* Native backend only: how often the firmware called hal_eeprom_idle() (the robot at rest) since reset. */
 uint32_t sil_eeprom_idle_calls(void);
+uint32_t sil_eeprom_writes(void); /* native: EEPROM bytes programmed since reset */
 
 /* =====================================================================================
  * FAULT INJECTION (SIL API version 2): hooks for the fault table (`make faults`).
@@ -169,6 +170,9 @@ uint32_t sil_eeprom_idle_calls(void);
 #define SIL_REC_PARAMS 1  /* parameter record (params.h) */
 #define SIL_REC_SIGNING 2 /* MAVLink signing key record (signing.h) */
 #define SIL_REC_SIGNING_TS 3 /* signing timestamp ring (signing.h) */
+#define SIL_REC_CALIB_COPY 4 /* the copy slots lib/storage writes before each main slot */
+#define SIL_REC_PARAMS_COPY 5
+#define SIL_REC_SIGNING_COPY 6
 
 #define SIL_RESET_POWER_ON 0
 #define SIL_RESET_WATCHDOG 1

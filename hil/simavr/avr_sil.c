@@ -42,8 +42,7 @@
  * main loop as on the chip. sil_avr_eeprom_writes() counts the bytes programmed.
  * sil_avr_control_gap_max_us() is the longest time between two control ticks (throttle /
  * left-duty compare writes, avr_board_model.h), read and reset: "worst control period", e.g.
- * during a save, where the watchdog kick gap (sil_kick_gap_max_us) shows nothing because
- * hal_eeprom_write() kicks it per byte. sil_avr_control_ticks() counts the ticks.
+ * during a save (agnav_host.sil.storage_timing). sil_avr_control_ticks() counts the ticks.
  *
  * simavr 1.6 corrections, so the model behaves like the chip: TIFRn writes clear only the
  * flags written as 1 (simavr clears all: a Timer5 overflow pending under cli() was lost and the

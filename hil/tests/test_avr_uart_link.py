@@ -35,21 +35,6 @@ def avr_lib() -> C.CDLL:
     return lib
 
 
-def bind_link(fw: Firmware) -> None:
-    lib = fw._lib
-    lib.sil_avr_set_host_baud.argtypes = [C.c_uint32]
-    lib.sil_avr_set_host_baud.restype = None
-    lib.sil_avr_uart_link_stats.argtypes = [C.POINTER(C.c_uint32)]
-    lib.sil_avr_uart_link_stats.restype = None
-    lib.sil_avr_set_uart_divisor.argtypes = [C.c_uint32, C.c_int]
-    lib.sil_avr_set_uart_divisor.restype = None
-    for name in ("sil_avr_eeprom_writes", "sil_avr_control_ticks", "sil_avr_control_gap_max_us"):
-        getattr(lib, name).restype = C.c_uint32
-        getattr(lib, name).argtypes = []
-    lib.sil_avr_set_eeprom_write_us.argtypes = [C.c_uint32]
-    lib.sil_avr_set_eeprom_write_us.restype = None
-
-
 def link_stats(fw: Firmware) -> dict[str, int]:
     out = (C.c_uint32 * 6)()
     fw._lib.sil_avr_uart_link_stats(out)
@@ -114,7 +99,6 @@ def test_avr_link_at_57600_baud_is_intact_both_ways(host_baud):
     between the two ends): no byte garbled either way, the command is acknowledged, telemetry
     decodes."""
     with Firmware(backend="avr") as fw:
-        bind_link(fw)
         assert fw._lib.sil_avr_host_baud() == 57600
         fw._lib.sil_avr_set_host_baud(host_baud)
         h, msgs = host_exchange(fw, 1_500_000)
@@ -133,7 +117,6 @@ def test_avr_link_with_a_wrong_divisor_garbles_bytes(ubrr, u2x, host_baud):
     garbled both ways, nothing decodes, the command goes unanswered. The same divisor with the
     host following the firmware's rate (simavr's own UART) shows nothing wrong."""
     with Firmware(backend="avr") as fw:
-        bind_link(fw)
         fw._lib.sil_avr_set_host_baud(host_baud)
         fw._lib.sil_avr_set_uart_divisor(ubrr, u2x)
         h, msgs = host_exchange(fw, 1_500_000)
@@ -147,7 +130,6 @@ def test_avr_link_with_a_wrong_divisor_garbles_bytes(ubrr, u2x, host_baud):
         print(f"UBRR0 {ubrr} U2X0 {u2x} ({actual:.0f} baud) vs host {host_baud}: {st}")
 
     with Firmware(backend="avr") as fw:
-        bind_link(fw)
         fw._lib.sil_avr_set_host_baud(0)
         fw._lib.sil_avr_set_uart_divisor(ubrr, u2x)
         h, msgs = host_exchange(fw, 1_500_000)
@@ -235,7 +217,6 @@ def test_avr_control_gap_reads_the_control_period_and_a_save_programs_every_chan
     byte that changed, each holding EEPE for 3.3 ms; the worst control period across the save is
     printed (what a storage change is measured by)."""
     with Firmware(backend="avr") as fw:
-        bind_link(fw)
         host_exchange(fw, 300_000)
         fw._lib.sil_avr_control_gap_max_us()
         t0, ticks0 = fw.time_us, fw._lib.sil_avr_control_ticks()

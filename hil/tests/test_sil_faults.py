@@ -135,7 +135,8 @@ def test_stored_calibration_table_the_output_stage_cannot_drive_is_replaced_at_b
         h = Host(fw)
         h.run(300_000)
         h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_SPEED, D.AGNAV_CALIB_ACTION_SAVE))
-        h.run(300_000)
+        h.run(2_500_000)  # both slots, a byte per 3.3 ms
+        assert [m.result for m in h.msgs if m.get_type() == "AGNAV_CALIB_ACK"][-2:] == [D.AGNAV_CALIB_IN_PROGRESS, 0]
         addr, n = fw.eeprom_record("calib")
         rec = bytearray(fw.eeprom()[addr:addr + n])
         speed = 6 + 68 * D.AGNAV_CALIB_SPEED  # header, then 68-byte tables: neutral u16, n, 8 x (pwm u16, value i16)
@@ -304,15 +305,32 @@ def test_external_reset_boots_ready():
         assert driving(fw), "a deliberate reset (button, USB) is not a failsafe"
 
 
-def test_corrupt_calibration_falls_back_to_defaults_with_error():
+def _saved_calibration(fw):
+    h = Host(fw)
+    h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_STEER, D.AGNAV_CALIB_ACTION_SAVE))
+    h.run(2_500_000)
+    acks = [m.result for m in h.msgs if m.get_type() == "AGNAV_CALIB_ACK"]
+    assert acks == [D.AGNAV_CALIB_IN_PROGRESS, D.AGNAV_CALIB_ACCEPTED], acks
+    fw.reboot()
+    msgs = Host(fw).run(500_000)
+    assert not last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED, "saved tables load clean"
+
+
+def test_a_damaged_main_calibration_slot_loads_the_copy():
     with Firmware(NO_SONAR) as fw:
-        h = Host(fw)
-        h.send(D.MAVLink_agnav_calib_request_message(1, 1, D.AGNAV_CALIB_STEER, D.AGNAV_CALIB_ACTION_SAVE))
-        h.run(300_000)
+        _saved_calibration(fw)
+        fw.corrupt_record("calib", offset=20, length=1, xor_mask=0x10)
         fw.reboot()
         msgs = Host(fw).run(500_000)
-        assert not last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED, "saved tables load clean"
-        fw.corrupt_record("calib", offset=20, length=1, xor_mask=0x10)
+        assert not any(t.startswith("calib: EEPROM tables bad") for t in texts(msgs)), texts(msgs)
+        assert not last_status(msgs).failsafe_flags & D.AGNAV_FAILSAFE_CALIB_DEFAULTED
+
+
+def test_corrupt_calibration_in_both_slots_falls_back_to_defaults_with_error():
+    with Firmware(NO_SONAR) as fw:
+        _saved_calibration(fw)
+        for rec in ("calib", "calib_copy"):
+            fw.corrupt_record(rec, offset=20, length=1, xor_mask=0x10)
         fw.reboot()
         msgs = Host(fw).run(500_000)
         assert any(t.startswith("calib: EEPROM tables bad or unfit") for t in texts(msgs)), texts(msgs)
@@ -335,7 +353,10 @@ def test_corrupt_parameters_fall_back_to_defaults_with_error():
         assert fw.param_get("MAX_SPEED_MM_S") == 700
         addr, n = fw.eeprom_record("params")
         assert n == 4 + 4 * _params_in_table() + 2, f"record of {n} B for {_params_in_table()} parameters"
-        fw.eeprom_corrupt(addr + 4 + 4 * 10, 1, 0x01)  # a bit of MAX_SPEED_MM_S's stored value
+        copy, n_copy = fw.eeprom_record("params_copy")
+        assert n_copy == n and copy != addr
+        for a in (addr, copy):  # both slots: a copy would stand in for one
+            fw.eeprom_corrupt(a + 4 + 4 * 10, 1, 0x01)  # a bit of MAX_SPEED_MM_S's stored value
         fw.reboot()
         msgs = Host(fw).run(500_000)
         assert fw.param_get("MAX_SPEED_MM_S") == 1000, "default back in use"
@@ -383,6 +404,8 @@ def test_fault_hooks_reject_bad_indices():
             fw.fault_sonar(12, "zero")
         assert fw.eeprom_record("signing") == (0x40, 36)
         assert fw.eeprom_record("calib") == (0x100, 212)
+        assert fw.eeprom_record("calib_copy") == (0x400, 212)
+        assert fw.eeprom_record("signing_copy") == (0xB0, 36)
 
 
 def test_calibration_sweep_below_the_motion_threshold_is_not_a_stuck_encoder():

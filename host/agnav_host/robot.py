@@ -28,6 +28,7 @@ from .lasers import DeviceClock, LaserInfo, LaserMount, LaserSource
 from .link.state import PoseState
 from .planning.base import RobotSpec
 from .types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
+from .units import milli_to_si
 
 __all__ = ["RobotRun", "RunSettings", "RobotOutcome", "LaserFeed", "RunOutputs", "POSE_STALE_S", "TRAJECTORY_COLUMNS",
            "latency_summary"]
@@ -60,6 +61,9 @@ class RunSettings:
     duration_s: float | None = None
     firmware_max_steer_rad: float = math.radians(45.0)
     status_hz: float = 2.0
+    # what the run knows of its surroundings (a sim.world.World, e.g. the surveyed posts), drawn under the path in
+    # trajectory.png; None: the picture holds the path, the robot's outline and the goals
+    world: Any = None
 
 
 @dataclass
@@ -194,27 +198,18 @@ def _world_points(scan: LaserScan) -> np.ndarray:
 
 
 def _plot_run(rows: np.ndarray, settings: RunSettings, path: Path, reason: str) -> Path | None:
+    """trajectory.png: the planned pose's path coloured by speed, the robot's outline (from its RobotSpec) every
+    2 s and at the end, the start and the goals, over ``settings.world`` when the run has one; None without
+    matplotlib."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib  # noqa: F401
     except ImportError:
         return None
-    fig, ax = plt.subplots(figsize=(6, 6))
-    ax.plot(rows[:, 1], rows[:, 2], "b-", lw=1, label="planned pose (odometry / localiser)")
-    ax.plot([settings.start.x_m], [settings.start.y_m], "ko", label="start")
-    for i, g in enumerate(settings.goals):
-        ax.add_patch(plt.Circle((g.x_m, g.y_m), g.tolerance_m, color="g", alpha=0.3))
-        ax.plot([g.x_m], [g.y_m], "g*", ms=10, label="goal" if i == 0 else None)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x, m")
-    ax.set_ylabel("y, m")
-    ax.legend(fontsize=8, loc="best")
-    ax.set_title(f"agnav run ({reason})")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    from .viz.world_plot import Footprint, plot_run
+
+    return plot_run(path, rows, world=settings.world, goals=list(settings.goals), start=settings.start,
+                    footprint=Footprint.of_spec(settings.spec), title="agnav run (odometry / localiser pose)",
+                    end_reason=reason)
 
 
 def _sonar_frame(state: Any, t_s: float) -> SonarFrame | None:
@@ -257,7 +252,7 @@ class RobotRun:
         self.sleep = sleep
         self.t0 = clock()
         self._odo_stamp: float | None = None
-        self._odo_clock = DeviceClock(wrap_s=2.0 ** 32 / 1000.0)  # time_boot_ms is a 32-bit count of ms
+        self._odo_clock = DeviceClock(wrap_s=milli_to_si(2.0 ** 32))  # time_boot_ms is a 32-bit count of ms
         self._blind = False
         self._hold = ""
 

@@ -266,32 +266,9 @@ void calib_use_default(uint8_t id)
 #define HDR_BYTES 6u
 #define PAYLOAD_BYTES (3u * CALIB_TABLE_BYTES)
 
-static void put_u16(uint8_t *b, uint16_t v)
-{
-    b[0] = (uint8_t)(v & 0xFFu);
-    b[1] = (uint8_t)(v >> 8);
-}
-
 static uint16_t get_u16(const uint8_t *b) { return (uint16_t)(b[0] | ((uint16_t)b[1] << 8)); }
 
-static void encode_table(const calib_table_t *t, uint8_t *b)
-{
-    put_u16(b, t->neutral_pwm);
-    uint8_t k = 2u;
-    for (uint8_t side = 0; side < 2u; side++) {
-        const calib_side_t *s = side == 0u ? &t->pos : &t->neg;
-        b[k++] = s->n;
-        for (uint8_t i = 0; i < CALIB_MAX_POINTS; i++) {
-            bool used = i < s->n;
-            put_u16(&b[k], used ? s->pt[i].pwm : 0u);
-            put_u16(&b[k + 2u], used ? (uint16_t)s->pt[i].value : 0u);
-            k = (uint8_t)(k + 4u);
-        }
-    }
-}
-
-/* decode_table() and encode_header(): boot, load and save only. Not inlined: ~90 B less flash on
- * the AVR (LTO). */
+/* Not inlined: boot and load only (~90 B less flash on the AVR with LTO). */
 __attribute__((noinline)) static void decode_table(const uint8_t *b, calib_table_t *t)
 {
     t->neutral_pwm = get_u16(b);
@@ -307,31 +284,47 @@ __attribute__((noinline)) static void decode_table(const uint8_t *b, calib_table
     }
 }
 
-__attribute__((noinline)) static void encode_header(uint8_t *h)
+uint8_t calib_record_byte(uint16_t pos)
 {
-    put_u16(h, CALIB_MAGIC);
-    h[2] = CALIB_LAYOUT_VERSION;
-    h[3] = (uint8_t)CALIB_TABLE_COUNT;
-    put_u16(&h[4], PAYLOAD_BYTES);
+    uint16_t v;
+    uint8_t k;
+    if (pos < HDR_BYTES) { /* magic u16, layout version u8, table count u8, payload length u16 */
+        v = pos < 2u ? CALIB_MAGIC
+            : pos < 4u ? (uint16_t)(CALIB_LAYOUT_VERSION | ((uint16_t)CALIB_TABLE_COUNT << 8)) : PAYLOAD_BYTES;
+        k = (uint8_t)pos;
+    } else {
+        pos = (uint16_t)(pos - HDR_BYTES);
+        const calib_table_t *t = &s_tables[pos / CALIB_TABLE_BYTES];
+        k = (uint8_t)(pos % CALIB_TABLE_BYTES);
+        if (k < 2u) {
+            v = t->neutral_pwm;
+        } else { /* each side: n u8, then CALIB_MAX_POINTS x {pwm u16, value i16}, unused points 0 */
+            k = (uint8_t)(k - 2u);
+            const calib_side_t *side = k < 33u ? &t->pos : &t->neg;
+            k = (uint8_t)(k % 33u);
+            if (k == 0u) {
+                return side->n;
+            }
+            k = (uint8_t)(k - 1u);
+            uint8_t i = (uint8_t)(k / 4u);
+            v = i >= side->n ? 0u : (k & 2u) ? (uint16_t)side->pt[i].value : side->pt[i].pwm;
+        }
+    }
+    return (uint8_t)(v >> ((k & 1u) ? 8u : 0u));
 }
 
-static bool fits_eeprom(void)
-{
-    return (uint32_t)CALIB_EEPROM_ADDR + CALIB_RECORD_BYTES <= (uint32_t)hal_eeprom_size();
-}
-
-/* Check the stored record; when apply is true also copy the tables into the
- * active set (only called after a full check passed). */
-static calib_status_t read_record(bool apply)
+/* Check the record at addr; when apply is true also copy the tables into the active set (only called
+ * after a full check passed). */
+static calib_status_t read_record(uint16_t addr, bool apply)
 {
     uint8_t h[HDR_BYTES];
     uint8_t b[CALIB_TABLE_BYTES];
     calib_table_t t;
 
-    if (!fits_eeprom()) {
+    if ((uint32_t)addr + CALIB_RECORD_BYTES > (uint32_t)hal_eeprom_size()) {
         return CALIB_E_NO_SPACE;
     }
-    hal_eeprom_read(CALIB_EEPROM_ADDR, h, HDR_BYTES);
+    hal_eeprom_read(addr, h, HDR_BYTES);
     bool erased = true;
     for (uint8_t i = 0; i < HDR_BYTES; i++) {
         erased = erased && h[i] == 0xFFu;
@@ -351,8 +344,7 @@ static calib_status_t read_record(bool apply)
     uint16_t crc = crc16_ccitt_false(h, HDR_BYTES);
     calib_status_t table_status = CALIB_OK;
     for (uint8_t id = 0; id < (uint8_t)CALIB_TABLE_COUNT; id++) {
-        hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), b,
-                        CALIB_TABLE_BYTES);
+        hal_eeprom_read((uint16_t)(addr + HDR_BYTES + id * CALIB_TABLE_BYTES), b, CALIB_TABLE_BYTES);
         crc = crc16_ccitt_false_update(crc, b, CALIB_TABLE_BYTES);
         decode_table(b, &t);
         if (calib_validate(id, &t) != CALIB_OK) {
@@ -362,7 +354,7 @@ static calib_status_t read_record(bool apply)
         }
     }
     uint8_t c[2];
-    hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + PAYLOAD_BYTES), c, 2u);
+    hal_eeprom_read((uint16_t)(addr + HDR_BYTES + PAYLOAD_BYTES), c, 2u);
     if (get_u16(c) != crc) {
         return CALIB_E_BAD_CRC;
     }
@@ -371,9 +363,14 @@ static calib_status_t read_record(bool apply)
 
 calib_status_t calib_load(void)
 {
-    calib_status_t r = read_record(false);
+    uint16_t addr = CALIB_EEPROM_ADDR;
+    calib_status_t r = read_record(addr, false);
+    if (r != CALIB_OK && read_record(CALIB_COPY_ADDR, false) == CALIB_OK) {
+        addr = CALIB_COPY_ADDR; /* a save cut short in the main slot: the copy is whole */
+        r = CALIB_OK;
+    }
     if (r == CALIB_OK) {
-        (void)read_record(true);
+        (void)read_record(addr, true);
         s_health = (uint8_t)(s_health & ~CALIB_DEFAULTED);
     } else {
         load_defaults();
@@ -382,45 +379,7 @@ calib_status_t calib_load(void)
     return r;
 }
 
-calib_status_t calib_save(void)
+void calib_saved(bool ok)
 {
-    uint8_t h[HDR_BYTES];
-    uint8_t b[CALIB_TABLE_BYTES];
-    uint8_t c[2];
-
-    if (!fits_eeprom()) {
-        s_health |= CALIB_SAVE_FAILED;
-        return CALIB_E_NO_SPACE;
-    }
-    encode_header(h);
-    uint16_t crc = crc16_ccitt_false(h, HDR_BYTES);
-    hal_eeprom_write(CALIB_EEPROM_ADDR, h, HDR_BYTES);
-    for (uint8_t id = 0; id < (uint8_t)CALIB_TABLE_COUNT; id++) {
-        encode_table(&s_tables[id], b);
-        crc = crc16_ccitt_false_update(crc, b, CALIB_TABLE_BYTES);
-        hal_eeprom_write((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), b,
-                         CALIB_TABLE_BYTES);
-    }
-    put_u16(c, crc);
-    hal_eeprom_write((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + PAYLOAD_BYTES), c, 2u);
-
-    /* Read back: the record must check out and hold what is active. */
-    calib_status_t r = read_record(false);
-    for (uint8_t id = 0; r == CALIB_OK && id < (uint8_t)CALIB_TABLE_COUNT; id++) {
-        uint8_t e[CALIB_TABLE_BYTES];
-        encode_table(&s_tables[id], b);
-        hal_eeprom_read((uint16_t)(CALIB_EEPROM_ADDR + HDR_BYTES + id * CALIB_TABLE_BYTES), e,
-                        CALIB_TABLE_BYTES);
-        for (uint8_t i = 0; i < CALIB_TABLE_BYTES; i++) {
-            if (e[i] != b[i]) {
-                r = CALIB_E_VERIFY;
-            }
-        }
-    }
-    if (r != CALIB_OK) {
-        s_health |= CALIB_SAVE_FAILED;
-        return CALIB_E_VERIFY;
-    }
-    s_health = (uint8_t)(s_health & ~(CALIB_DEFAULTED | CALIB_SAVE_FAILED));
-    return CALIB_OK;
+    s_health = ok ? (uint8_t)(s_health & ~(CALIB_DEFAULTED | CALIB_SAVE_FAILED)) : (uint8_t)(s_health | CALIB_SAVE_FAILED);
 }

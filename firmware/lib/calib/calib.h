@@ -28,7 +28,8 @@
  * negative requests then use the positive side's magnitude and the output
  * stage sets the direction.
  *
- * Storage (hal_eeprom_*), at CALIB_EEPROM_ADDR, little-endian:
+ * Storage: one record, written by lib/storage into CALIB_COPY_ADDR and then CALIB_EEPROM_ADDR (a
+ * power cut leaves one of them whole), little-endian:
  *   0  magic u16 = CALIB_MAGIC      4  length u16 = payload bytes (204)
  *   2  layout_version u8            6  payload: 3 tables x 68 bytes
  *   3  table_count u8 (3)         210  crc16 u16, CRC-16/CCITT-FALSE of bytes 0..209
@@ -51,9 +52,8 @@ extern "C" {
 #define CALIB_ANGLE_LIMIT_CDEG 4500   /* |steering| <= 45 deg */
 #define CALIB_SPEED_LIMIT_MM_S 10000  /* |speed| <= 10 m/s */
 
-#ifndef CALIB_EEPROM_ADDR
-#define CALIB_EEPROM_ADDR 0x0100u     /* EEPROM map: owned by the lead, override with -D */
-#endif
+#define CALIB_EEPROM_ADDR 0x0100u     /* main slot (EEPROM map in storage.h) */
+#define CALIB_COPY_ADDR 0x0400u       /* copy slot */
 #define CALIB_MAGIC 0xCA1Bu
 #define CALIB_LAYOUT_VERSION 1u
 #define CALIB_TABLE_BYTES 68u
@@ -99,8 +99,7 @@ typedef enum {
     CALIB_E_BAD_LENGTH = 19,
     CALIB_E_BAD_CRC = 20,
     CALIB_E_BAD_TABLE = 21,      /* CRC fine but a stored table fails validation */
-    CALIB_E_NO_SPACE = 22,       /* record does not fit the EEPROM */
-    CALIB_E_VERIFY = 23          /* save: read-back differs */
+    CALIB_E_NO_SPACE = 22        /* record does not fit the EEPROM */
 } calib_status_t;
 
 /* Health bits for the host (calib_health()). */
@@ -111,16 +110,21 @@ typedef enum {
  * loaded yet). No EEPROM access. */
 void calib_init(void);
 
-/* Load the stored tables. On any problem (erased, bad magic / version /
+/* Load the stored tables from the main slot, or from the copy when the main
+ * one does not check out. When neither does (erased, bad magic / version /
  * length / CRC, invalid table) the defaults become active and
- * CALIB_DEFAULTED is set; on success the flag is cleared. Returns the
- * reason (CALIB_OK on success). */
+ * CALIB_DEFAULTED is set; on success the flag is cleared. Returns the main
+ * slot's reason (CALIB_OK when either slot loaded). */
 calib_status_t calib_load(void);
 
-/* Write the active tables (header + tables + CRC) and read them back.
- * Success clears CALIB_DEFAULTED and CALIB_SAVE_FAILED (storage now
- * holds the active tables); failure sets CALIB_SAVE_FAILED. */
-calib_status_t calib_save(void);
+/* Byte pos (pos < CALIB_RECORD_BYTES - 2) of the record of the active tables, for lib/storage, which
+ * writes it (STORAGE_CALIB) and appends the CRC. */
+uint8_t calib_record_byte(uint16_t pos);
+
+/* The end of a save (lib/storage): success clears CALIB_DEFAULTED and
+ * CALIB_SAVE_FAILED (storage holds the active tables); failure sets
+ * CALIB_SAVE_FAILED. */
+void calib_saved(bool ok);
 
 /* CALIB_DEFAULTED | CALIB_SAVE_FAILED bits. */
 uint8_t calib_health(void);
@@ -132,7 +136,7 @@ calib_status_t calib_last_load_status(void);
 calib_status_t calib_validate(uint8_t id, const calib_table_t *t);
 
 /* Replace active table id after calib_validate(); a refused table leaves
- * the active one unchanged. Not saved until calib_save(). */
+ * the active one unchanged. Not saved until a save (storage_request(STORAGE_CALIB)). */
 calib_status_t calib_set_table(uint8_t id, const calib_table_t *t);
 
 /* Copy active table id; false for a bad id. */

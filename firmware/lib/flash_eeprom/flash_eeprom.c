@@ -157,6 +157,8 @@ bool fe_write(fe_t *fe, uint16_t addr, const void *src, uint16_t len)
     return whole && fe->usable;
 }
 
+bool fe_has_room(const fe_t *fe) { return !fe->usable || fe->next + 4u <= fe->flash->bank_bytes; }
+
 bool fe_compact_if_fuller_than(fe_t *fe, uint8_t percent)
 {
     if (!fe->usable) {

@@ -58,6 +58,10 @@ void fe_read(const fe_t *fe, uint16_t addr, void *dst, uint16_t len);
  * the flash failed (the mirror still holds the new values). */
 bool fe_write(fe_t *fe, uint16_t addr, const void *src, uint16_t len);
 
+/* Whether one more changed byte fits the active bank without moving to the other one (an erase); true
+ * when the flash is unusable (writes then go to the mirror alone). */
+bool fe_has_room(const fe_t *fe);
+
 /* Move the mirror to the other bank now if the active one's record area is more than percent full
  * (true: moved). For a moment when the stall of an erase does no harm (the robot at rest), so that a
  * full bank seldom forces a move while it drives. */

@@ -105,12 +105,20 @@ void hal_servo_write_us(uint8_t channel, uint16_t pulse_us);
 void hal_pwm_write_duty(uint8_t channel, uint8_t duty, bool reverse);
 
 /* ---- non-volatile storage --------------------------------------------- */
+/* Writes never wait: hal_eeprom_write_byte() starts programming one byte and returns, and
+ * hal_eeprom_busy() is true until the store can take the next byte or be read (AVR: EEPE, 3.3 ms a
+ * byte; STM32: the active flash sector is full and moves to the other one only in hal_eeprom_idle(),
+ * at rest; sim: the time set with sim_eeprom_set_write_us()). Reading while busy waits for the byte
+ * in flight on the AVR. lib/storage writes the records through these, a byte per loop pass. */
 uint16_t hal_eeprom_size(void);
+bool hal_eeprom_busy(void);
 void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len);
-void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len);
+/* Start writing one byte; false when it cannot be stored (beyond the size, flash failed). Call only
+ * when hal_eeprom_busy() is false. */
+bool hal_eeprom_write_byte(uint16_t addr, uint8_t value);
 /* Called by the application about once a second while the robot is at rest (nothing commanded, wheels
  * still): storage upkeep whose stall would matter while driving (the STM32 backend moves its flash
- * EEPROM to the other sector when the active one is half full; others do nothing). */
+ * EEPROM to the other sector when the active one is half full or full; others do nothing). */
 void hal_eeprom_idle(void);
 
 /* ---- watchdog and reset cause ----------------------------------------- */

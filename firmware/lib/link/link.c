@@ -5,6 +5,7 @@
 #include "hal.h"
 #include "params.h"
 #include "signing.h"
+#include "storage.h"
 
 #define RC_DEADZONE_US 20
 #define RC_VALID_MIN_US 800u  /* pulses outside 800..2200 us are refused (1000..2000 nominal) */
@@ -181,6 +182,15 @@ static void send_command_ack(uint16_t command, uint8_t result, uint8_t reason, u
     (void)link_send(&msg);
 }
 
+void link_storage_done(uint8_t done, uint8_t failed)
+{
+    if ((done & STORAGE_BIT(STORAGE_PARAMS)) != 0u) {
+        send_command_ack(MAV_CMD_PREFLIGHT_STORAGE,
+                         (failed & STORAGE_BIT(STORAGE_PARAMS)) != 0u ? MAV_RESULT_FAILED : MAV_RESULT_ACCEPTED, 0u,
+                         s_state.storage_to_sys, s_state.storage_to_comp);
+    }
+}
+
 static void send_param(uint16_t index)
 {
     param_def_t p;
@@ -304,13 +314,19 @@ __attribute__((noinline)) static void handle_command(const mavlink_message_t *m,
         break;
     case MAV_CMD_PREFLIGHT_STORAGE:
         /* param1: 0 read parameters back from EEPROM, 1 write them (boot-time ones such as
-         * DRIVE_KIND take effect at the next boot). Other param1 values: unsupported. */
+         * DRIVE_KIND take effect at the next boot): answered IN_PROGRESS at once, then ACCEPTED or
+         * FAILED when lib/storage has written and read back both slots (link_storage_done()).
+         * Other param1 values: unsupported. */
         if (!is_finite_f(c.param1)) {
             reason = LINK_REFUSAL_NOT_FINITE;
         } else if (is_one(c.param1)) {
-            result = params_save(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
+            storage_request(STORAGE_PARAMS);
+            s_state.storage_to_sys = m->sysid;
+            s_state.storage_to_comp = m->compid;
+            result = MAV_RESULT_IN_PROGRESS;
         } else if (is_zero(c.param1)) {
-            result = params_load(PARAMS_EEPROM_ADDR) == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
+            result = storage_pending(STORAGE_PARAMS) ? MAV_RESULT_TEMPORARILY_REJECTED /* being written */
+                     : params_load() == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
         } else {
             result = MAV_RESULT_UNSUPPORTED;
             reason = LINK_REFUSAL_OUT_OF_RANGE;

@@ -83,6 +83,8 @@ typedef struct {
     uint16_t rx_unsigned;      /* signing on: frames without a signature dropped */
     uint16_t rx_bad_signature; /* signing on: frames signed with another key dropped */
     uint16_t rx_replay;        /* signing on: frames with an old timestamp (replays) dropped */
+    uint8_t storage_to_sys;    /* who asked for the parameter save in progress (its final COMMAND_ACK) */
+    uint8_t storage_to_comp;
 } link_state_t;
 
 /* Why a command or message was refused: COMMAND_ACK.result_param2 (AGNAV_REFUSAL in agnav.xml). */
@@ -134,6 +136,8 @@ uint8_t link_compid(void);
 #else
 #define LINK_TEXT(s) (s)
 #endif
+/* lib/storage finished records (storage_take_done()): the final COMMAND_ACK of a parameter save. */
+void link_storage_done(uint8_t done, uint8_t failed);
 void link_send_statustext(uint8_t severity, const UNITS_ROM char *text);
 /* The same with the first '#' of text replaced by the decimal n (0..99): "sonar #: ...". */
 void link_send_statustext_n(uint8_t severity, const UNITS_ROM char *text, uint8_t n);

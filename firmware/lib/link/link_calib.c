@@ -109,7 +109,6 @@ uint8_t link_calib_result(calib_status_t status)
     case CALIB_E_TOO_FEW_POINTS:
         return AGNAV_CALIB_TOO_FEW_POINTS;
     case CALIB_E_NO_SPACE:
-    case CALIB_E_VERIFY:
         return AGNAV_CALIB_STORAGE_ERROR;
     default:
         return AGNAV_CALIB_BAD_TABLE;

@@ -108,25 +108,23 @@ typedef struct {
     uint16_t count;
 } params_header_t;
 
-params_result_t params_save(uint16_t addr)
+uint16_t params_record_bytes(void) { return (uint16_t)(sizeof(params_header_t) + 4u * s_count + 2u); }
+
+uint8_t params_record_byte(uint16_t pos)
 {
-    params_header_t h = {PARAMS_MAGIC, s_count};
-    uint16_t crc = crc16_ccitt_false_update(CRC16_CCITT_FALSE_INIT, &h, sizeof h);
-    hal_eeprom_write(addr, &h, sizeof h);
-    uint16_t a = (uint16_t)(addr + sizeof h);
-    for (uint16_t i = 0; i < s_count; i++) {
-        int32_t v = params_get(i);
-        crc = crc16_ccitt_false_update(crc, &v, sizeof v);
-        hal_eeprom_write(a, &v, sizeof v);
-        a = (uint16_t)(a + sizeof v);
+    uint32_t v;
+    if (pos < sizeof(params_header_t)) {
+        v = pos < 2u ? PARAMS_MAGIC : s_count;
+        pos &= 1u;
+    } else {
+        pos = (uint16_t)(pos - sizeof(params_header_t));
+        v = (uint32_t)params_get((uint16_t)(pos / 4u));
+        pos &= 3u;
     }
-    hal_eeprom_write(a, &crc, sizeof crc);
-    uint16_t back = 0;
-    hal_eeprom_read(a, &back, sizeof back);
-    return back == crc ? PARAMS_OK : PARAMS_STORAGE;
+    return (uint8_t)(v >> (8u * pos));
 }
 
-params_result_t params_load(uint16_t addr)
+static params_result_t load_at(uint16_t addr)
 {
     params_header_t h;
     hal_eeprom_read(addr, &h, sizeof h);
@@ -163,4 +161,14 @@ params_result_t params_load(uint16_t addr)
         }
     }
     return result;
+}
+
+params_result_t params_load(void)
+{
+    params_result_t r = load_at(PARAMS_EEPROM_ADDR);
+    if (r == PARAMS_OK) {
+        return r;
+    }
+    params_result_t copy = load_at(PARAMS_COPY_ADDR);
+    return copy == PARAMS_OK ? copy : r;
 }

@@ -20,9 +20,9 @@
 
 #include "units.h"
 
-/* EEPROM map of the firmware: 0x0100 calibration record (calib, CALIB_EEPROM_ADDR, 212 B),
- * PARAMS_EEPROM_ADDR the parameter record (4 B header + 4 B per parameter + CRC). */
+/* The parameter record's slots (4 B header + 4 B per parameter + CRC; map in storage.h). */
 #define PARAMS_EEPROM_ADDR 0x0200u
+#define PARAMS_COPY_ADDR 0x0300u
 
 #define PARAMS_NAME_LEN 16u /* MAVLink param_id length; names shorter are NUL-terminated */
 
@@ -63,14 +63,17 @@ uint8_t params_changes(void);
 /* Range-checked set; out-of-range values are refused and the old value stays. */
 params_result_t params_set(uint16_t index, int32_t value);
 
-/* EEPROM persistence at addr: {magic, count, values[], crc16}. Load leaves every
- * value as it is (the module defaults, at boot) and returns PARAMS_STORAGE when the
- * record is missing (erased) or longer than today's table, PARAMS_CORRUPT when its
- * header or CRC is bad; a stored value outside today's range is skipped
- * (PARAMS_STORAGE) and the others are applied. A record with FEWER values than the
- * table was written before rows were appended (keys are append-only): its values
- * are applied and the newer rows keep their defaults (PARAMS_OK). */
-params_result_t params_save(uint16_t addr);
-params_result_t params_load(uint16_t addr);
+/* EEPROM record {magic u16, count u16, values[] i32, crc16}, written by lib/storage (a byte at a time,
+ * copy slot then main slot): its length and its byte pos (pos < length - 2; the CRC is the writer's). */
+uint16_t params_record_bytes(void);
+uint8_t params_record_byte(uint16_t pos);
+
+/* Load from the main slot, or from the copy when the main one does not check out (a save cut short).
+ * Leaves every value as it is (the module defaults, at boot) and returns PARAMS_STORAGE when the
+ * record is missing (erased) or longer than today's table, PARAMS_CORRUPT when its header or CRC is
+ * bad; a stored value outside today's range is skipped (PARAMS_STORAGE) and the others are applied.
+ * A record with FEWER values than the table was written before rows were appended (keys are
+ * append-only): its values are applied and the newer rows keep their defaults (PARAMS_OK). */
+params_result_t params_load(void);
 
 #endif

@@ -4,25 +4,23 @@
 
 #include "crc16.h"
 #include "hal.h"
+#include "storage.h"
 
 static mavlink_signing_t s_sign;
 static mavlink_signing_streams_t s_streams;
 static mavlink_status_t *s_rx;
 static mavlink_status_t *s_tx;
 static uint8_t s_state;
-static uint64_t s_saved_ts;  /* newest timestamp stored (or the boot value) */
+static uint64_t s_saved_ts;  /* newest timestamp stored or being stored (or the boot value) */
 static uint32_t s_last_ms;
-static uint8_t s_last_write_ms;
 static uint8_t s_ts_slot;    /* slot the next timestamp goes to */
 static bool s_provisioning;
 static bool s_sign_telemetry; /* sent frames signed while a key is set */
-/* Background writer: one record at a time, one byte per tick. */
-static uint8_t s_wr_kind;    /* 0 none, 1 key record, 2 timestamp slot */
+/* Timestamp writer: one slot, one byte per tick while the EEPROM is free (the key record is
+ * lib/storage's). */
+static bool s_ts_writing;
 static uint8_t s_wr_pos;
 static uint16_t s_wr_crc;
-static uint64_t s_wr_ts;
-
-enum { WR_NONE = 0, WR_KEY = 1, WR_TS = 2 };
 
 /* Timestamp bytes in EEPROM are little-endian, as every target stores a uint64_t: a copy of
  * its first 6 bytes is the record (no 64-bit shifts, ~0.2 KB of AVR code). */
@@ -66,30 +64,40 @@ static bool key_is_zero(const uint8_t *k)
     return acc == 0u;
 }
 
-static uint16_t key_crc(const uint8_t *key)
-{
-    uint16_t magic = SIGNING_MAGIC;
-    uint16_t crc = crc16_ccitt_false_update(CRC16_CCITT_FALSE_INIT, &magic, sizeof magic);
-    return crc16_ccitt_false_update(crc, key, 32u);
-}
+#define KEY_ERASED 3u /* load_key_at(): the slot was never written */
 
-static uint8_t load_key(void)
+/* SIGNING_ON or SIGNING_OFF (a whole record; an all-zero key is "off"), KEY_ERASED or SIGNING_KEY_CORRUPT. */
+static uint8_t load_key_at(uint16_t addr)
 {
-    uint16_t magic, crc;
-    hal_eeprom_read(SIGNING_KEY_ADDR, &magic, sizeof magic);
-    hal_eeprom_read(SIGNING_KEY_ADDR + 2u, s_sign.secret_key, 32u);
-    hal_eeprom_read(SIGNING_KEY_ADDR + 34u, &crc, sizeof crc);
-    uint8_t all = (uint8_t)(magic & (magic >> 8) & crc & (crc >> 8));
-    for (uint8_t i = 0; i < 32u; i++) {
-        all &= s_sign.secret_key[i];
+    uint8_t rec[SIGNING_KEY_RECORD_BYTES];
+    hal_eeprom_read(addr, rec, sizeof rec);
+    memcpy(s_sign.secret_key, &rec[2], 32u);
+    uint8_t all = 0xFFu;
+    for (uint8_t i = 0; i < sizeof rec; i++) {
+        all &= rec[i];
     }
     if (all == 0xFFu) {
-        return SIGNING_OFF; /* erased */
+        return KEY_ERASED;
     }
-    if (magic != SIGNING_MAGIC || crc != key_crc(s_sign.secret_key)) {
+    if ((uint16_t)(rec[0] | ((uint16_t)rec[1] << 8)) != SIGNING_MAGIC || !storage_slot_ok(addr, sizeof rec)) {
         return SIGNING_KEY_CORRUPT;
     }
     return key_is_zero(s_sign.secret_key) ? SIGNING_OFF : SIGNING_ON;
+}
+
+/* The main slot when it holds a whole record, else a whole copy (a key change cut short by a power
+ * cut), else the main slot's verdict: erased = no key, damaged = fail closed. */
+static uint8_t load_key(void)
+{
+    uint8_t st = load_key_at(SIGNING_KEY_ADDR);
+    if (st <= SIGNING_ON) {
+        return st;
+    }
+    uint8_t copy = load_key_at(SIGNING_KEY_COPY_ADDR);
+    if (copy <= SIGNING_ON) {
+        return copy;
+    }
+    return st == KEY_ERASED ? SIGNING_OFF : SIGNING_KEY_CORRUPT;
 }
 
 /* Boot only. Not inlined: its 64-bit comparisons written out in agnav_setup() (LTO) cost ~0.2 KB
@@ -123,10 +131,9 @@ void signing_init(mavlink_status_t *rx, mavlink_status_t *tx, uint32_t now_ms)
     memset(&s_streams, 0, sizeof s_streams);
     s_rx = rx;
     s_tx = tx;
-    s_wr_kind = WR_NONE;
+    s_ts_writing = false;
     s_sign_telemetry = true;
     s_last_ms = now_ms;
-    s_last_write_ms = (uint8_t)now_ms;
     s_state = load_key();
     load_timestamp();
     s_sign.accept_unsigned_callback = accept_unsigned;
@@ -136,7 +143,7 @@ void signing_init(mavlink_status_t *rx, mavlink_status_t *tx, uint32_t now_ms)
 
 uint8_t signing_state(void) { return s_state; }
 uint64_t signing_timestamp(void) { return s_sign.timestamp; }
-bool signing_write_pending(void) { return s_wr_kind != WR_NONE; }
+bool signing_write_pending(void) { return s_ts_writing || storage_pending(STORAGE_SIGNING_KEY); }
 
 void signing_set_key(const uint8_t key[32], uint64_t initial_timestamp)
 {
@@ -147,58 +154,35 @@ void signing_set_key(const uint8_t key[32], uint64_t initial_timestamp)
     }
     s_state = key_is_zero(key) ? SIGNING_OFF : SIGNING_ON;
     attach(s_state == SIGNING_ON);
-    s_wr_kind = WR_KEY; /* replaces a timestamp write in progress: that slot's CRC fails, others hold */
-    s_wr_pos = 0u;
-    s_wr_crc = key_crc(key);
+    storage_request(STORAGE_SIGNING_KEY);
 }
 
-/* Byte pos of the record being written. */
-static uint8_t record_byte(uint8_t pos)
+uint8_t signing_key_record_byte(uint16_t pos)
 {
-    if (s_wr_kind == WR_KEY) {
-        if (pos < 2u) {
-            return (uint8_t)(SIGNING_MAGIC >> (8u * pos));
-        }
-        if (pos < 34u) {
-            return s_sign.secret_key[pos - 2u];
-        }
-        return (uint8_t)(s_wr_crc >> (8u * (pos - 34u)));
-    }
-    if (pos < 6u) {
-        return ((const uint8_t *)&s_wr_ts)[pos];
-    }
-    return (uint8_t)(s_wr_crc >> (8u * (pos - 6u)));
+    return pos < 2u ? (uint8_t)(SIGNING_MAGIC >> (8u * pos)) : s_sign.secret_key[pos - 2u];
 }
 
 void signing_tick(uint32_t now_ms)
 {
     uint32_t dt_ms = now_ms - s_last_ms;
     s_last_ms = now_ms;
-    if (s_state == SIGNING_OFF && s_wr_kind == WR_NONE) {
+    if (s_state == SIGNING_OFF && !s_ts_writing) {
         return;
     }
     s_sign.timestamp += (uint64_t)dt_ms * 100u;
-    if (s_wr_kind == WR_NONE && s_state == SIGNING_ON && s_sign.timestamp >= s_saved_ts + SIGNING_TS_SAVE_INTERVAL) {
-        s_wr_ts = s_sign.timestamp;
-        s_wr_crc = crc16_ccitt_false(&s_wr_ts, 6u);
-        s_wr_kind = WR_TS;
+    if (!s_ts_writing && s_state == SIGNING_ON && s_sign.timestamp >= s_saved_ts + SIGNING_TS_SAVE_INTERVAL) {
+        s_saved_ts = s_sign.timestamp;
+        s_wr_crc = crc16_ccitt_false(&s_saved_ts, 6u);
+        s_ts_writing = true;
         s_wr_pos = 0u;
     }
-    if (s_wr_kind == WR_NONE || (uint8_t)((uint8_t)now_ms - s_last_write_ms) < SIGNING_WRITE_GAP_MS) {
+    if (!s_ts_writing || hal_eeprom_busy()) {
         return;
     }
-    s_last_write_ms = (uint8_t)now_ms;
-    uint8_t b = record_byte(s_wr_pos);
-    uint16_t addr = s_wr_kind == WR_KEY ? (uint16_t)(SIGNING_KEY_ADDR + s_wr_pos)
-                                        : (uint16_t)(SIGNING_TS_ADDR + s_ts_slot * SIGNING_TS_SLOT_BYTES + s_wr_pos);
-    hal_eeprom_write(addr, &b, 1u);
-    s_wr_pos++;
-    uint8_t len = s_wr_kind == WR_KEY ? SIGNING_KEY_RECORD_BYTES : SIGNING_TS_SLOT_BYTES;
-    if (s_wr_pos >= len) {
-        if (s_wr_kind == WR_TS) {
-            s_saved_ts = s_wr_ts;
-            s_ts_slot = (uint8_t)((s_ts_slot + 1u) % SIGNING_TS_SLOTS);
-        }
-        s_wr_kind = WR_NONE;
+    uint8_t b = s_wr_pos < 6u ? ((const uint8_t *)&s_saved_ts)[s_wr_pos] : (uint8_t)(s_wr_crc >> (8u * (s_wr_pos - 6u)));
+    (void)hal_eeprom_write_byte((uint16_t)(SIGNING_TS_ADDR + s_ts_slot * SIGNING_TS_SLOT_BYTES + s_wr_pos), b);
+    if (++s_wr_pos >= SIGNING_TS_SLOT_BYTES) {
+        s_ts_slot = (uint8_t)((s_ts_slot + 1u) % SIGNING_TS_SLOTS);
+        s_ts_writing = false;
     }
 }

@@ -3,12 +3,13 @@
  * EEPROM, and the hooks that make the MAVLink library check every received frame
  * and sign every sent one while a key is set.
  *
- * Key record at SIGNING_KEY_ADDR (separate from parameters and calibration):
+ * Key record at SIGNING_KEY_ADDR, with a copy at SIGNING_KEY_COPY_ADDR (lib/storage writes the
+ * copy first, then the main slot, so a power cut during a key change leaves one whole):
  *   0 magic u16 = SIGNING_MAGIC, 2 key[32], 34 crc16 (CRC-16/CCITT-FALSE of bytes 0..33)
- * All 0xFF (erased) or an all-zero key means "no key": signing off, every frame
- * accepted. A record that is neither erased nor valid (bad magic or CRC, e.g. power
- * lost while it was written) FAILS CLOSED: signing stays on with that unusable key,
- * so nothing is accepted until a key is provisioned again (see link.h for how).
+ * The main slot is used when whole, else the copy. Both erased (0xFF), or an all-zero
+ * key, means "no key": signing off, every frame accepted. Neither whole and the main one
+ * not erased (damaged) FAILS CLOSED: signing stays on with that unusable key, so nothing
+ * is accepted until a key is provisioned again (see link.h for how).
  *
  * Timestamp (MAVLink units: 10 us since 2015-01-01). The firmware has no clock of the
  * calendar; it starts from the newest stored value plus SIGNING_TS_SAVE_INTERVAL (the
@@ -21,9 +22,8 @@
  * than 60 s (MAVLINK_SIGNING_TIMESTAMP_LIMIT) before that start value are refused
  * as replays; see docs/safety.md for the window that remains.
  *
- * EEPROM writes never block the loop: records are written one byte per
- * signing_tick() call, at most one byte per SIGNING_WRITE_GAP_MS (an AVR EEPROM byte
- * takes 3.4 ms; avr-libc only waits for the previous byte).
+ * EEPROM writes never block the loop: a timestamp slot is written one byte per
+ * signing_tick() call while hal_eeprom_busy() is false (an AVR EEPROM byte takes 3.3 ms).
  */
 #ifndef AGNAV_SIGNING_H
 #define AGNAV_SIGNING_H
@@ -34,13 +34,13 @@
 #include <agnav_mavlink.h>
 
 #define SIGNING_KEY_ADDR 0x0040u
+#define SIGNING_KEY_COPY_ADDR 0x00B0u
 #define SIGNING_KEY_RECORD_BYTES 36u
 #define SIGNING_TS_ADDR 0x0070u
 #define SIGNING_TS_SLOTS 8u
 #define SIGNING_TS_SLOT_BYTES 8u
 #define SIGNING_MAGIC 0x5349u                     /* "IS" */
 #define SIGNING_TS_SAVE_INTERVAL 3000000ULL       /* 30 s in 10 us units */
-#define SIGNING_WRITE_GAP_MS 5u
 
 /* Time of one 64-byte SHA-256 block on this target, with the interrupts that land in it
  * (agnav_sha256_block: 44 896 cycles = 2806 us at 16 MHz under simavr, +3 % for the encoder,
@@ -66,12 +66,14 @@ typedef enum {
 void signing_init(mavlink_status_t *rx, mavlink_status_t *tx, uint32_t now_ms);
 uint8_t signing_state(void); /* signing_state_t */
 /* Set (all-zero key: clear) the key, raise the timestamp to at least initial_timestamp,
- * and start writing the record to EEPROM in the background. */
+ * and queue the key record's write (lib/storage, STORAGE_SIGNING_KEY). */
 void signing_set_key(const uint8_t key[32], uint64_t initial_timestamp);
-/* Advance the timestamp to now_ms and write at most one pending EEPROM byte. */
+/* Byte pos (< SIGNING_KEY_RECORD_BYTES - 2) of the key record, for lib/storage. */
+uint8_t signing_key_record_byte(uint16_t pos);
+/* Advance the timestamp to now_ms and write at most one byte of a timestamp slot. */
 void signing_tick(uint32_t now_ms);
 uint64_t signing_timestamp(void);
-bool signing_write_pending(void);
+bool signing_write_pending(void); /* a timestamp slot or the key record not yet written */
 /* Frames without a signature that pass the parser even while signing is on: RADIO_STATUS
  * (radios inject it and cannot sign; the firmware does not act on it) and, only while the
  * provisioning window is open, SETUP_SIGNING (link.c decides whether to apply it). */

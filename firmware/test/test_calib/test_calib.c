@@ -215,6 +215,36 @@ static void test_calib_default_tables_pass_validation(void)
 
 /* ---- EEPROM ---------------------------------------------------------------- */
 
+/* The record of the active tables as lib/storage writes it into a slot: calib_record_byte() for the
+ * payload, then its CRC, little-endian. */
+static void write_record(uint16_t addr)
+{
+    uint16_t crc = CRC16_CCITT_FALSE_INIT;
+    uint8_t *ee = sim_eeprom_bytes();
+    for (uint16_t i = 0; i + 2u < CALIB_RECORD_BYTES; i++) {
+        uint8_t b = calib_record_byte(i);
+        crc = crc16_ccitt_false_update(crc, &b, 1u);
+        ee[addr + i] = b;
+    }
+    ee[addr + CALIB_RECORD_BYTES - 2u] = (uint8_t)crc;
+    ee[addr + CALIB_RECORD_BYTES - 1u] = (uint8_t)(crc >> 8);
+}
+
+/* A save as lib/storage ends it: both slots written and read back. */
+static void save(void)
+{
+    write_record(CALIB_COPY_ADDR);
+    write_record(CALIB_EEPROM_ADDR);
+    calib_saved(true);
+}
+
+/* Damage both slots the same way (bit rot the copy cannot make up for). */
+static void flip_both(uint16_t offset, uint8_t mask)
+{
+    sim_eeprom_bytes()[CALIB_EEPROM_ADDR + offset] ^= mask;
+    sim_eeprom_bytes()[CALIB_COPY_ADDR + offset] ^= mask;
+}
+
 static void test_calib_load_erased_eeprom_falls_back_with_flag(void)
 {
     calib_table_t t = servo_us_table();
@@ -231,7 +261,7 @@ static void test_calib_save_then_load_round_trip_clears_flag(void)
     calib_table_t got;
     TEST_ASSERT_BITS_HIGH_MESSAGE(CALIB_DEFAULTED, calib_health(), "defaults after init");
     TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_set_table(CALIB_STEER, &t));
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
+    save();
     TEST_ASSERT_EQUAL_HEX8(0x00u, calib_health());
 
     calib_init(); /* as after a reboot */
@@ -251,8 +281,8 @@ static void test_calib_load_bad_crc_falls_back_with_flag(void)
 {
     calib_table_t t = servo_us_table();
     TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_set_table(CALIB_STEER, &t));
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
-    sim_eeprom_bytes()[CALIB_EEPROM_ADDR + 6u + 10u] ^= 0x01u; /* one bit in the steering table */
+    save();
+    flip_both(6u + 10u, 0x01u); /* one bit in the steering table */
     TEST_ASSERT_EQUAL_INT(CALIB_E_BAD_CRC, calib_load());
     TEST_ASSERT_BITS_HIGH(CALIB_DEFAULTED, calib_health());
     TEST_ASSERT_EQUAL_INT32_MESSAGE(2406, calib_value_from_pwm(CALIB_STEER, 170u), "defaults active");
@@ -261,17 +291,17 @@ static void test_calib_load_bad_crc_falls_back_with_flag(void)
 static void test_calib_load_bad_header_fields_fall_back(void)
 {
     uint8_t *ee = sim_eeprom_bytes();
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
-    ee[CALIB_EEPROM_ADDR + 2u] = CALIB_LAYOUT_VERSION + 1u;
+    save();
+    ee[CALIB_EEPROM_ADDR + 2u] = ee[CALIB_COPY_ADDR + 2u] = CALIB_LAYOUT_VERSION + 1u;
     TEST_ASSERT_EQUAL_INT(CALIB_E_BAD_VERSION, calib_load());
     TEST_ASSERT_BITS_HIGH(CALIB_DEFAULTED, calib_health());
 
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
-    ee[CALIB_EEPROM_ADDR + 4u] = 0x10u;
+    save();
+    ee[CALIB_EEPROM_ADDR + 4u] = ee[CALIB_COPY_ADDR + 4u] = 0x10u;
     TEST_ASSERT_EQUAL_INT(CALIB_E_BAD_LENGTH, calib_load());
 
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
-    ee[CALIB_EEPROM_ADDR + 0u] = 0x00u;
+    save();
+    ee[CALIB_EEPROM_ADDR + 0u] = ee[CALIB_COPY_ADDR + 0u] = 0x00u;
     TEST_ASSERT_EQUAL_INT(CALIB_E_BAD_MAGIC, calib_load());
     TEST_ASSERT_BITS_HIGH(CALIB_DEFAULTED, calib_health());
 }
@@ -279,16 +309,50 @@ static void test_calib_load_bad_header_fields_fall_back(void)
 static void test_calib_load_rejects_invalid_table_with_good_crc(void)
 {
     uint8_t *ee = sim_eeprom_bytes();
-    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_save());
-    /* Steering pos side, point 1 value (offset 2 + 1 + 4 + 2): 2406 -> 0x7FFF. */
-    ee[CALIB_EEPROM_ADDR + 6u + 9u] = 0xFFu;
-    ee[CALIB_EEPROM_ADDR + 6u + 10u] = 0x7Fu;
-    uint16_t crc = crc16_ccitt_false(&ee[CALIB_EEPROM_ADDR], CALIB_RECORD_BYTES - 2u);
-    ee[CALIB_EEPROM_ADDR + CALIB_RECORD_BYTES - 2u] = (uint8_t)(crc & 0xFFu);
-    ee[CALIB_EEPROM_ADDR + CALIB_RECORD_BYTES - 1u] = (uint8_t)(crc >> 8);
+    save();
+    /* Steering pos side, point 1 value (offset 2 + 1 + 4 + 2): 2406 -> 0x7FFF, in both slots. */
+    for (uint8_t k = 0; k < 2u; k++) {
+        uint16_t a = k == 0u ? CALIB_EEPROM_ADDR : CALIB_COPY_ADDR;
+        ee[a + 6u + 9u] = 0xFFu;
+        ee[a + 6u + 10u] = 0x7Fu;
+        uint16_t crc = crc16_ccitt_false(&ee[a], CALIB_RECORD_BYTES - 2u);
+        ee[a + CALIB_RECORD_BYTES - 2u] = (uint8_t)(crc & 0xFFu);
+        ee[a + CALIB_RECORD_BYTES - 1u] = (uint8_t)(crc >> 8);
+    }
     TEST_ASSERT_EQUAL_INT(CALIB_E_BAD_TABLE, calib_load());
     TEST_ASSERT_BITS_HIGH(CALIB_DEFAULTED, calib_health());
     TEST_ASSERT_EQUAL_INT32(2406, calib_value_from_pwm(CALIB_STEER, 170u));
+}
+
+static void test_calib_load_takes_the_copy_when_the_main_slot_is_torn(void)
+{
+    calib_table_t t = servo_us_table();
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_set_table(CALIB_STEER, &t));
+    write_record(CALIB_COPY_ADDR); /* a save cut short in its main pass */
+    sim_eeprom_bytes()[CALIB_EEPROM_ADDR] = 0xCAu; /* one byte of the new record in an erased slot */
+    calib_init();
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_load());
+    TEST_ASSERT_BITS_LOW(CALIB_DEFAULTED, calib_health());
+    TEST_ASSERT_EQUAL_INT32(1500, calib_value_from_pwm(CALIB_STEER, 1300u));
+}
+
+static void test_calib_load_prefers_a_whole_main_slot(void)
+{
+    write_record(CALIB_COPY_ADDR); /* the defaults */
+    calib_table_t t = servo_us_table();
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_set_table(CALIB_STEER, &t));
+    write_record(CALIB_EEPROM_ADDR);
+    calib_init();
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_load());
+    TEST_ASSERT_EQUAL_INT32(1500, calib_value_from_pwm(CALIB_STEER, 1300u));
+}
+
+static void test_calib_failed_save_is_flagged_and_a_good_one_clears_it(void)
+{
+    calib_saved(false);
+    TEST_ASSERT_BITS_HIGH(CALIB_SAVE_FAILED | CALIB_DEFAULTED, calib_health());
+    calib_saved(true);
+    TEST_ASSERT_EQUAL_HEX8(0x00u, calib_health());
 }
 
 int main(void)
@@ -312,5 +376,8 @@ int main(void)
     RUN_TEST(test_calib_load_bad_crc_falls_back_with_flag);
     RUN_TEST(test_calib_load_bad_header_fields_fall_back);
     RUN_TEST(test_calib_load_rejects_invalid_table_with_good_crc);
+    RUN_TEST(test_calib_load_takes_the_copy_when_the_main_slot_is_torn);
+    RUN_TEST(test_calib_load_prefers_a_whole_main_slot);
+    RUN_TEST(test_calib_failed_save_is_flagged_and_a_good_one_clears_it);
     return UNITY_END();
 }

@@ -226,6 +226,22 @@ static void test_compaction_at_rest_only_past_the_threshold(void)
     TEST_ASSERT_EQUAL_HEX8((uint8_t)(RECORDS / 2u), read1((uint16_t)((RECORDS / 2u - 1u) % EE_SIZE)));
 }
 
+static void test_a_full_bank_has_no_room_until_compacted(void)
+{
+    uint8_t v = 0;
+    for (uint16_t k = 0; k < RECORDS; k++) {
+        TEST_ASSERT_TRUE_MESSAGE(fe_has_room(&s_fe), "room left before the last record");
+        v = (uint8_t)(k + 1u);
+        TEST_ASSERT_TRUE(fe_write(&s_fe, (uint16_t)(k % EE_SIZE), &v, 1u));
+    }
+    TEST_ASSERT_FALSE_MESSAGE(fe_has_room(&s_fe), "the next byte would move banks (an erase)");
+    TEST_ASSERT_EQUAL_UINT32(1u, s_fe.generation);
+    TEST_ASSERT_TRUE(fe_compact_if_fuller_than(&s_fe, 50u)); /* at rest */
+    TEST_ASSERT_TRUE(fe_has_room(&s_fe));
+    power_on();
+    TEST_ASSERT_EQUAL_HEX8((uint8_t)RECORDS, read1((uint16_t)((RECORDS - 1u) % EE_SIZE)));
+}
+
 static void test_write_beyond_the_end_is_clipped_and_refused(void)
 {
     const uint8_t v[4] = {1, 2, 3, 4};
@@ -248,6 +264,7 @@ int main(void)
     RUN_TEST(test_power_cut_at_any_operation_keeps_every_completed_write);
     RUN_TEST(test_failed_program_keeps_the_value_in_ram_and_says_so);
     RUN_TEST(test_compaction_at_rest_only_past_the_threshold);
+    RUN_TEST(test_a_full_bank_has_no_room_until_compacted);
     RUN_TEST(test_write_beyond_the_end_is_clipped_and_refused);
     return UNITY_END();
 }

@@ -69,10 +69,26 @@ static void test_sim_eeprom_starts_erased_and_keeps_writes(void)
     hal_eeprom_read(10u, b, 2u);
     TEST_ASSERT_EQUAL_HEX8(0xFF, b[0]);
     const uint8_t w[2] = {0x12, 0x34};
-    hal_eeprom_write(10u, w, 2u);
+    TEST_ASSERT_TRUE(hal_eeprom_write_byte(10u, w[0]));
+    TEST_ASSERT_TRUE(hal_eeprom_write_byte(11u, w[1]));
     hal_eeprom_read(10u, b, 2u);
     TEST_ASSERT_EQUAL_UINT8_ARRAY(w, b, 2);
     TEST_ASSERT_EQUAL_HEX8(0x34, sim_eeprom_bytes()[11]);
+    TEST_ASSERT_FALSE_MESSAGE(hal_eeprom_write_byte((uint16_t)SIM_EEPROM_SIZE, 1u), "beyond the size");
+}
+
+static void test_sim_eeprom_is_busy_for_the_set_programming_time(void)
+{
+    TEST_ASSERT_FALSE(hal_eeprom_busy());
+    sim_eeprom_set_write_us(3300u);
+    sim_time_set_us(1000u);
+    TEST_ASSERT_TRUE(hal_eeprom_write_byte(5u, 0x5Au));
+    TEST_ASSERT_TRUE(hal_eeprom_busy());
+    sim_time_set_us(1000u + 3299u);
+    TEST_ASSERT_TRUE(hal_eeprom_busy());
+    sim_time_set_us(1000u + 3300u);
+    TEST_ASSERT_FALSE(hal_eeprom_busy());
+    TEST_ASSERT_EQUAL_UINT32(1u, sim_eeprom_writes());
 }
 
 static void test_sim_encoder_edge_reaches_hook_with_time(void)
@@ -120,6 +136,7 @@ int main(void)
     RUN_TEST(test_clock_ms_counts_on_across_the_microsecond_wrap);
     RUN_TEST(test_sim_uart_round_trip_keeps_byte_order);
     RUN_TEST(test_sim_eeprom_starts_erased_and_keeps_writes);
+    RUN_TEST(test_sim_eeprom_is_busy_for_the_set_programming_time);
     RUN_TEST(test_sim_encoder_edge_reaches_hook_with_time);
     RUN_TEST(test_sim_encoder_hall_wheel_hook_sees_b_as_0);
     RUN_TEST(test_sim_irq_save_restore_nests);

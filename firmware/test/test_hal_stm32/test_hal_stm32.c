@@ -47,7 +47,8 @@ static uint32_t s_rcc_base = RCC_CHIP_BASE;
 #define hal_pwm_write_duty stm32_hal_pwm_write_duty
 #define hal_eeprom_size stm32_hal_eeprom_size
 #define hal_eeprom_read stm32_hal_eeprom_read
-#define hal_eeprom_write stm32_hal_eeprom_write
+#define hal_eeprom_write_byte stm32_hal_eeprom_write_byte
+#define hal_eeprom_busy stm32_hal_eeprom_busy
 #define hal_eeprom_idle stm32_hal_eeprom_idle
 #define hal_watchdog_start stm32_hal_watchdog_start
 #define hal_watchdog_kick stm32_hal_watchdog_kick

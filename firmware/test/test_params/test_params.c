@@ -2,6 +2,7 @@
 
 #include "hal.h"
 #include "params.h"
+#include "crc16.h"
 #include "sim/hal_sim.h"
 
 static uint16_t s_timeout_ms;
@@ -30,6 +31,22 @@ void setUp(void)
 }
 
 void tearDown(void) {}
+
+/* The record as lib/storage writes it into a slot: params_record_byte() for the payload, then the
+ * payload's CRC, little-endian. */
+static void write_record(uint16_t addr)
+{
+    uint16_t n = params_record_bytes();
+    uint16_t crc = CRC16_CCITT_FALSE_INIT;
+    uint8_t *ee = sim_eeprom_bytes();
+    for (uint16_t i = 0; i + 2u < n; i++) {
+        uint8_t b = params_record_byte(i);
+        crc = crc16_ccitt_false_update(crc, &b, 1u);
+        ee[addr + i] = b;
+    }
+    ee[addr + n - 2u] = (uint8_t)crc;
+    ee[addr + n - 1u] = (uint8_t)(crc >> 8);
+}
 
 static void test_params_get_reads_each_type_from_module_variables(void)
 {
@@ -76,20 +93,20 @@ static void test_params_changes_moves_on_every_stored_value_only(void)
     TEST_ASSERT_EQUAL(PARAMS_OK, params_set(1u, 10));
     uint8_t c1 = params_changes();
     TEST_ASSERT_TRUE(c1 != c0);
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
+    write_record(PARAMS_EEPROM_ADDR);
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(c1, params_changes(), "saving is not a change");
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load());
     TEST_ASSERT_TRUE_MESSAGE(params_changes() != c1, "a load (PREFLIGHT_STORAGE) must count as a change");
 }
 
-static void test_params_save_then_load_round_trips(void)
+static void test_params_record_then_load_round_trips(void)
 {
     params_set(0u, 750);
     params_set(2u, -99999);
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
+    write_record(PARAMS_EEPROM_ADDR);
     module_defaults(); /* a reboot */
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load());
     TEST_ASSERT_EQUAL_UINT16(750u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT32(-99999, s_big);
 }
@@ -98,17 +115,17 @@ static void test_params_load_keeps_defaults_on_corruption(void)
 {
     params_set(0u, 750);
     params_set(1u, 120);
-    params_save(512u);
-    sim_eeprom_bytes()[512u + 5u] ^= 0x40u; /* inside the first value */
+    write_record(PARAMS_EEPROM_ADDR);
+    sim_eeprom_bytes()[PARAMS_EEPROM_ADDR + 5u] ^= 0x40u; /* inside the first value */
     module_defaults(); /* a reboot */
-    TEST_ASSERT_EQUAL_MESSAGE(PARAMS_CORRUPT, params_load(512u), "a bad CRC is corruption, not absence");
+    TEST_ASSERT_EQUAL_MESSAGE(PARAMS_CORRUPT, params_load(), "a bad CRC is corruption, not absence");
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT16_MESSAGE(0, s_trim_cdeg, "no value of a corrupt record is applied");
 }
 
 static void test_params_load_keeps_defaults_when_erased(void)
 {
-    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load());
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
 }
 
@@ -116,7 +133,7 @@ static void test_params_load_skips_a_stored_value_outside_todays_range(void)
 {
     s_timeout_ms = 5000u;
     s_trim_cdeg = 100;
-    params_save(512u);
+    write_record(PARAMS_EEPROM_ADDR);
     module_defaults();
     /* Narrower range in a newer firmware: simulate by a table with max 1000. */
     static const PARAMS_ROM param_def_t NARROW[] = {
@@ -125,7 +142,7 @@ static void test_params_load_skips_a_stored_value_outside_todays_range(void)
         {"BIG_VALUE", PARAM_I32, &s_big, -100000, 100000},
     };
     params_init(NARROW, 3u);
-    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load());
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT16(100, s_trim_cdeg);
 }
@@ -133,10 +150,10 @@ static void test_params_load_skips_a_stored_value_outside_todays_range(void)
 static void test_params_load_reports_corrupt_header_and_keeps_defaults(void)
 {
     params_set(0u, 750);
-    params_save(512u);
-    sim_eeprom_bytes()[512u] ^= 0x01u; /* magic */
+    write_record(PARAMS_EEPROM_ADDR);
+    sim_eeprom_bytes()[PARAMS_EEPROM_ADDR] ^= 0x01u; /* magic */
     module_defaults();
-    TEST_ASSERT_EQUAL(PARAMS_CORRUPT, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_CORRUPT, params_load());
     TEST_ASSERT_EQUAL_UINT16(500u, s_timeout_ms);
 }
 
@@ -146,11 +163,11 @@ static void test_params_load_applies_an_older_shorter_record_and_keeps_new_defau
     params_init(TABLE, 2u);
     params_set(0u, 900);
     params_set(1u, -250);
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_save(512u));
+    write_record(PARAMS_EEPROM_ADDR);
     module_defaults();
     params_init(TABLE, 3u);
     s_big = 77; /* today's default of the appended row */
-    TEST_ASSERT_EQUAL(PARAMS_OK, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load());
     TEST_ASSERT_EQUAL_UINT16(900u, s_timeout_ms);
     TEST_ASSERT_EQUAL_INT16(-250, s_trim_cdeg);
     TEST_ASSERT_EQUAL_INT32_MESSAGE(77, s_big, "a row the record does not hold keeps its default");
@@ -158,9 +175,46 @@ static void test_params_load_applies_an_older_shorter_record_and_keeps_new_defau
 
 static void test_params_load_refuses_a_longer_record_from_a_newer_firmware(void)
 {
-    params_save(512u);
+    write_record(PARAMS_EEPROM_ADDR);
     params_init(TABLE, 2u);
-    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load(512u));
+    TEST_ASSERT_EQUAL(PARAMS_STORAGE, params_load());
+}
+
+static void test_params_load_takes_the_copy_when_the_main_slot_is_torn(void)
+{
+    params_set(0u, 750);
+    write_record(PARAMS_COPY_ADDR); /* a save cut short: copy written, main slot half rewritten */
+    params_set(0u, 600);
+    write_record(PARAMS_EEPROM_ADDR);
+    sim_eeprom_bytes()[PARAMS_EEPROM_ADDR + 5u] ^= 0x40u;
+    module_defaults();
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load());
+    TEST_ASSERT_EQUAL_UINT16(750u, s_timeout_ms);
+}
+
+static void test_params_load_prefers_a_whole_main_slot_over_the_copy(void)
+{
+    params_set(0u, 750);
+    write_record(PARAMS_COPY_ADDR);
+    params_set(0u, 600);
+    write_record(PARAMS_EEPROM_ADDR);
+    module_defaults();
+    TEST_ASSERT_EQUAL(PARAMS_OK, params_load());
+    TEST_ASSERT_EQUAL_UINT16(600u, s_timeout_ms);
+}
+
+static void test_params_record_bytes_are_the_little_endian_layout(void)
+{
+    params_set(2u, -2);
+    TEST_ASSERT_EQUAL_UINT16(4u + 3u * 4u + 2u, params_record_bytes());
+    TEST_ASSERT_EQUAL_HEX8(0x1D, params_record_byte(0u)); /* magic 0xA61D */
+    TEST_ASSERT_EQUAL_HEX8(0xA6, params_record_byte(1u));
+    TEST_ASSERT_EQUAL_HEX8(3u, params_record_byte(2u)); /* count */
+    TEST_ASSERT_EQUAL_HEX8(0u, params_record_byte(3u));
+    TEST_ASSERT_EQUAL_HEX8(0xF4, params_record_byte(4u)); /* 500 = 0x01F4 */
+    TEST_ASSERT_EQUAL_HEX8(0x01, params_record_byte(5u));
+    TEST_ASSERT_EQUAL_HEX8(0xFE, params_record_byte(12u)); /* -2 */
+    TEST_ASSERT_EQUAL_HEX8(0xFF, params_record_byte(15u));
 }
 
 int main(void)
@@ -171,12 +225,15 @@ int main(void)
     RUN_TEST(test_params_find_by_name_without_terminator);
     RUN_TEST(test_params_set_refuses_out_of_range_and_keeps_old_value);
     RUN_TEST(test_params_changes_moves_on_every_stored_value_only);
-    RUN_TEST(test_params_save_then_load_round_trips);
+    RUN_TEST(test_params_record_then_load_round_trips);
     RUN_TEST(test_params_load_keeps_defaults_on_corruption);
     RUN_TEST(test_params_load_keeps_defaults_when_erased);
     RUN_TEST(test_params_load_skips_a_stored_value_outside_todays_range);
     RUN_TEST(test_params_load_reports_corrupt_header_and_keeps_defaults);
     RUN_TEST(test_params_load_applies_an_older_shorter_record_and_keeps_new_defaults);
     RUN_TEST(test_params_load_refuses_a_longer_record_from_a_newer_firmware);
+    RUN_TEST(test_params_load_takes_the_copy_when_the_main_slot_is_torn);
+    RUN_TEST(test_params_load_prefers_a_whole_main_slot_over_the_copy);
+    RUN_TEST(test_params_record_bytes_are_the_little_endian_layout);
     return UNITY_END();
 }

@@ -8,6 +8,7 @@
 #include "link_wire.h"
 #include "params.h"
 #include "signing.h"
+#include "storage.h"
 #include "sim/hal_sim.h"
 
 #define HOST_SYS 255u
@@ -115,6 +116,7 @@ static void boot(uint16_t window_ms)
     params_init(TABLE, 1u);
     sim_time_set_us(s_now_ms * 1000u);
     link_cfg_t cfg = {US, 1u, 2460, 2000, 0, window_ms, 0};
+    storage_init();
     link_init(&cfg);
 }
 
@@ -125,12 +127,33 @@ static void run_ms(uint32_t ms)
         s_now_ms += 2u;
         sim_time_set_us(s_now_ms * 1000u);
         link_poll(s_now_ms);
+        storage_tick(); /* main.c's link task runs both */
     }
 }
+
+/* The key record wired as main.c wires it. */
+void storage_record_slots(uint8_t record, uint16_t *main_addr, uint16_t *copy_addr, uint16_t *len)
+{
+    TEST_ASSERT_EQUAL_UINT8(STORAGE_SIGNING_KEY, record);
+    *main_addr = SIGNING_KEY_ADDR;
+    *copy_addr = SIGNING_KEY_COPY_ADDR;
+    *len = SIGNING_KEY_RECORD_BYTES;
+}
+
+uint8_t storage_record_byte(uint8_t record, uint16_t pos)
+{
+    (void)record;
+    return signing_key_record_byte(pos);
+}
+
+/* Both key slots, and the timestamp slot a new key's timestamp starts, at an AVR EEPROM's pace: a byte
+ * per 3.3 ms, so one per second 2 ms task. */
+#define KEY_WRITE_MS ((2u * SIGNING_KEY_RECORD_BYTES + SIGNING_TS_SLOT_BYTES) * 4u + 40u)
 
 void setUp(void)
 {
     sim_reset();
+    sim_eeprom_set_write_us(3300u);
     s_now_ms = 0u;
     boot(WINDOW_MS);
 }
@@ -261,7 +284,7 @@ static void test_signing_key_survives_reboot_via_eeprom(void)
 {
     setup_signing(NULL, KEY, T0);
     TEST_ASSERT_TRUE(signing_write_pending());
-    run_ms(SIGNING_KEY_RECORD_BYTES * (SIGNING_WRITE_GAP_MS + 2u) + 20u); /* a byte per 6 ms at a 2 ms task */
+    run_ms(KEY_WRITE_MS);
     TEST_ASSERT_FALSE_MESSAGE(signing_write_pending(), "the record is written in the background");
     boot(0u);
     TEST_ASSERT_EQUAL_UINT8(SIGNING_ON, signing_state());
@@ -274,10 +297,11 @@ static void test_signing_key_survives_reboot_via_eeprom(void)
 static void test_signing_corrupt_key_record_fails_closed(void)
 {
     setup_signing(NULL, KEY, T0);
-    run_ms(SIGNING_KEY_RECORD_BYTES * (SIGNING_WRITE_GAP_MS + 2u) + 20u); /* a byte per 6 ms at a 2 ms task */
+    run_ms(KEY_WRITE_MS);
     boot(0u);
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(SIGNING_ON, signing_state(), "intact before the bit flip");
     sim_eeprom_bytes()[SIGNING_KEY_ADDR + 10u] ^= 0x04u;
+    sim_eeprom_bytes()[SIGNING_KEY_COPY_ADDR + 10u] ^= 0x04u;
     boot(0u);
     TEST_ASSERT_EQUAL_UINT8(SIGNING_KEY_CORRUPT, signing_state());
     estop(NULL, 0u, 1.0f);
@@ -285,6 +309,24 @@ static void test_signing_corrupt_key_record_fails_closed(void)
     TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "nothing is accepted with a damaged key");
     TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_unsigned);
     TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_bad_signature);
+}
+
+static void test_signing_key_change_cut_short_leaves_a_whole_key(void)
+{
+    setup_signing(NULL, KEY, T0);
+    run_ms(KEY_WRITE_MS);
+    boot(WINDOW_MS);
+    setup_signing(KEY, OTHER_KEY, T0 + 1000u); /* the change, then a power cut in its main pass */
+    uint32_t writes = sim_eeprom_writes();
+    while (sim_eeprom_writes() - writes < SIGNING_KEY_RECORD_BYTES + 4u) {
+        run_ms(2u);
+    }
+    boot(0u);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(SIGNING_ON, signing_state(), "the copy holds the new key");
+    estop(KEY, T0 + 2000u, 1.0f);
+    TEST_ASSERT_FALSE_MESSAGE(link_state()->estop, "the old key is gone");
+    estop(OTHER_KEY, T0 + 3000u, 1.0f);
+    TEST_ASSERT_TRUE(link_state()->estop);
 }
 
 static void test_signing_timestamp_is_stored_and_restored_ahead_after_reboot(void)
@@ -390,6 +432,7 @@ int main(void)
     RUN_TEST(test_signing_zero_key_signed_clears_signing);
     RUN_TEST(test_signing_key_survives_reboot_via_eeprom);
     RUN_TEST(test_signing_corrupt_key_record_fails_closed);
+    RUN_TEST(test_signing_key_change_cut_short_leaves_a_whole_key);
     RUN_TEST(test_signing_timestamp_is_stored_and_restored_ahead_after_reboot);
     RUN_TEST(test_signing_robot_signs_its_telemetry);
     RUN_TEST(test_signing_telemetry_unsigned_when_off_but_commands_still_verified);

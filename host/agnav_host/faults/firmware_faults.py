@@ -77,14 +77,15 @@ def _reset_case(cause: str) -> FaultOutcome:
 
 
 def _eeprom_case(record: str) -> FaultOutcome:
-    """A bit flipped in an EEPROM record, then an external reset (the reset button) at 3 s."""
+    """A bit flipped in both slots of an EEPROM record, then an external reset (the reset button) at 3 s."""
     stored: dict[str, int] = {}
     reloaded: dict[str, int] = {}
 
     def inject(s) -> None:  # noqa: ANN001
         # the robot profile's parameters as stored in EEPROM before the damage
         stored.update({k: s.fw.param_get(k) for k in s.plant.firmware_params()})
-        s.fw.corrupt_record(record, offset=4, length=1, xor_mask=0x10)
+        for slot in (record, f"{record}_copy"):  # both slots: the copy stands in for a damaged main slot
+            s.fw.corrupt_record(slot, offset=4, length=1, xor_mask=0x10)
         s.fw.fault_reset("external")
 
     def read_back(s) -> None:  # noqa: ANN001
@@ -161,9 +162,9 @@ FIRMWARE_CASES = (
     FaultCase("brown-out reset at 0.4 m/s", "controller",
               "boots with outputs neutral, reports it, ignores setpoints until the host arms it",
               lambda: _reset_case("brown_out")),
-    FaultCase("calibration tables corrupted in EEPROM (one bit)", "controller",
+    FaultCase("calibration tables corrupted in EEPROM (one bit in both slots)", "controller",
               "CRC fails at boot: default tables, CALIB_DEFAULTED health flag, STATUSTEXT", lambda: _eeprom_case("calib")),
-    FaultCase("parameter record corrupted in EEPROM (one bit)", "controller",
+    FaultCase("parameter record corrupted in EEPROM (one bit in both slots)", "controller",
               "CRC fails at boot: default parameters, STATUSTEXT", lambda: _eeprom_case("params")),
     FaultCase("encoder interrupt storm (40 kHz for 1 s, 8 us per ISR)", "controller",
               "control tick keeps running (gap <= 30 ms), no watchdog reset", _isr_burst_case),

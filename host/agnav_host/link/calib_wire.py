@@ -24,14 +24,16 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..calib import CalibTable
+from ..units import cdeg_to_rad, milli_to_si
 
-__all__ = ["WireTable", "TABLE_STEER", "TABLE_SPEED", "TABLE_SPEED_RIGHT", "TABLE_NAMES", "RESULT_NAMES",
+__all__ = ["CALIB_IN_PROGRESS", "WireTable", "TABLE_STEER", "TABLE_SPEED", "TABLE_SPEED_RIGHT", "TABLE_NAMES", "RESULT_NAMES",
            "validate", "from_message", "from_calib_table", "MAX_SIDE_POINTS", "round_trips", "split_points"]
 
 TABLE_STEER, TABLE_SPEED, TABLE_SPEED_RIGHT = 0, 1, 2
 TABLE_NAMES = {TABLE_STEER: "steer", TABLE_SPEED: "speed", TABLE_SPEED_RIGHT: "speed_right"}
+CALIB_IN_PROGRESS = 6  # AGNAV_CALIB_IN_PROGRESS: a save under way, its result follows in a second ack
 RESULT_NAMES = {0: "ACCEPTED", 1: "NON_MONOTONE", 2: "OUT_OF_RANGE", 3: "TOO_FEW_POINTS", 4: "BAD_TABLE",
-                5: "STORAGE_ERROR"}
+                5: "STORAGE_ERROR", 6: "IN_PROGRESS"}
 MAX_SIDE_POINTS = 8
 MAX_WIRE_POINTS = 16
 PWM_MAX = 3000
@@ -122,7 +124,7 @@ class WireTable:
         if self.pos and not self.pos_above:
             raise ValueError("CalibTable needs the positive side above neutral; this table is mirrored")
         steer = self.table_id == TABLE_STEER
-        k = math.radians(1 / 100.0) if steer else 1e-3
+        k = cdeg_to_rad(1.0) if steer else milli_to_si(1.0)
         pos = [(p, v) for p, v in self.pos if p != self.neutral_pwm]
         neg = [(p, v) for p, v in self.neg if p != self.neutral_pwm]
         if len(pos) == 1:  # the zero point carried the side: give it back as the dead-band edge

@@ -21,7 +21,8 @@ import time
 from typing import Any
 
 from ..types import DriveCommand
-from .calib_wire import RESULT_NAMES, TABLE_NAMES, WireTable, from_message, round_trips, validate
+from ..units import rad_to_cdeg, si_to_milli, to_int16
+from .calib_wire import CALIB_IN_PROGRESS, RESULT_NAMES, TABLE_NAMES, WireTable, from_message, round_trips, validate
 from .endpoint import Endpoint, LinkTimeout
 
 __all__ = ["AgnavRobot", "CommandFailed", "MAV_CMD_AGNAV_ESTOP", "MAV_CMD_AGNAV_SET_BEHAVIOURS",
@@ -30,6 +31,8 @@ __all__ = ["AgnavRobot", "CommandFailed", "MAV_CMD_AGNAV_ESTOP", "MAV_CMD_AGNAV_
 MAV_CMD_AGNAV_ESTOP = 45900
 MAV_CMD_AGNAV_SET_BEHAVIOURS = 45901
 MAV_CMD_COMPONENT_ARM_DISARM = 400
+MAV_CMD_PREFLIGHT_STORAGE = 245
+MAV_RESULT_IN_PROGRESS = 5
 MAV_RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED", 4: "FAILED",
                     5: "IN_PROGRESS", 6: "CANCELLED"}
 CALIB_ACTION_READ, CALIB_ACTION_SAVE, CALIB_ACTION_DEFAULTS = 0, 1, 2
@@ -40,15 +43,11 @@ class CommandFailed(RuntimeError):
     """The robot answered but refused (the message says why)."""
 
 
-def _clamp_i16(v: float) -> int:
-    return int(max(-32768, min(32767, round(v))))
-
-
 def drive_to_wire(steer_rad: float, speed_m_s: float) -> tuple[int, int]:
     """(steer_cdeg, speed_mm_s), rounded and clamped to int16."""
     if not (math.isfinite(steer_rad) and math.isfinite(speed_m_s)):
         raise ValueError("drive setpoint must be finite")
-    return _clamp_i16(math.degrees(steer_rad) * 100.0), _clamp_i16(speed_m_s * 1000.0)
+    return to_int16(rad_to_cdeg(steer_rad)), to_int16(si_to_milli(speed_m_s))
 
 
 def steer_from_drive_command(cmd: DriveCommand, kinematics: str, wheelbase_m: float, track_m: float,
@@ -74,6 +73,7 @@ class AgnavRobot:
     def __init__(self, ep: Endpoint, timeout_s: float = 1.0, retries: int = 3) -> None:
         self.ep = ep
         self.timeout_s = timeout_s
+        self.storage_timeout_s = 10.0  # a save's final answer (the AVR writes ~0.5 KB at 3.3 ms a byte)
         self.retries = retries
         self._seq = 0
 
@@ -119,11 +119,34 @@ class AgnavRobot:
             attempt[0] += 1
             return self.mav.command_long_encode(*self._tgt(), command, attempt[0] - 1, *p)
 
-        ack = self.ep.request(make, "COMMAND_ACK", lambda m: m.command == command, self.timeout_s, self.retries,
-                              what or f"command {command}")
+        ack = self._until_final(lambda: self.ep.request(make, "COMMAND_ACK", lambda m: m.command == command,
+                                                        self.timeout_s, self.retries, what or f"command {command}"),
+                                "COMMAND_ACK", lambda m: m.command == command, MAV_RESULT_IN_PROGRESS,
+                                what or f"command {command}")
         if ack.result != 0:
             raise CommandFailed(f"{what or command}: {MAV_RESULT_NAMES.get(ack.result, ack.result)}")
         return int(ack.result)
+
+    def _until_final(self, ask: Any, types: str, match: Any, in_progress: int, what: str) -> Any:
+        """``ask()``'s answer, or when it says ``in_progress`` (a save the robot writes in the background), the
+        next matching answer that does not, within ``storage_timeout_s``. The request is not repeated meanwhile:
+        a repeat would start the write again."""
+        with self.ep.subscribe(types, match) as later:
+            m = ask()
+            end = time.monotonic() + self.storage_timeout_s
+            while m.result == in_progress:
+                left = end - time.monotonic()
+                n = later.get(left) if left > 0 else None
+                if n is None:
+                    raise LinkTimeout(f"{what}: the robot answered IN_PROGRESS and no result came within "
+                                      f"{self.storage_timeout_s:.0f} s")
+                m = n
+        return m
+
+    def params_store(self) -> int:
+        """Write the robot's parameters to its EEPROM (MAV_CMD_PREFLIGHT_STORAGE 1): answered IN_PROGRESS, then
+        ACCEPTED once both slots are written and read back (about 2 s on the AVR)."""
+        return self.command(MAV_CMD_PREFLIGHT_STORAGE, 1.0, what="param store")
 
     def estop(self, engage: bool = True) -> int:
         return self.command(MAV_CMD_AGNAV_ESTOP, 1.0 if engage else 0.0, what="estop" if engage else "estop release")
@@ -208,7 +231,9 @@ class AgnavRobot:
         return from_message(m)
 
     def _calib_ack(self, make: Any, table_id: int, what: str) -> int:
-        m = self.ep.request(make, "AGNAV_CALIB_ACK", lambda m: m.table_id == table_id, self.timeout_s, self.retries, what)
+        m = self._until_final(lambda: self.ep.request(make, "AGNAV_CALIB_ACK", lambda m: m.table_id == table_id,
+                                                      self.timeout_s, self.retries, what),
+                              "AGNAV_CALIB_ACK", lambda m: m.table_id == table_id, CALIB_IN_PROGRESS, what)
         if m.result != 0:
             raise CommandFailed(f"{what}: {RESULT_NAMES.get(m.result, m.result)}")
         return int(m.failsafe_flags)

@@ -134,14 +134,6 @@ def _indexed(arg: tuple[int, tuple[str, str, int]]) -> tuple[int, dict[str, Any]
     return arg[0], run_case(arg[1])
 
 
-def progress_bar(done: int, total: int, r: dict[str, Any]) -> None:
-    """A one-line progress bar on stderr."""
-    w = 30
-    f = int(w * done / total)
-    msg = f"{r['scenario']}/{r['planner']}/s{r['seed']}: {r['end']}"
-    print(f"\r[{'#' * f}{'.' * (w - f)}] {done}/{total} {msg:<48.48}", end="" if done < total else "\n", file=sys.stderr, flush=True)
-
-
 RUN_FIELDS = ("scenario", "planner", "seed", "end", "success", "time_s", "path_length_m", "bending_energy", "min_clearance_m",
               "stops", "heading_oscillations", "reversals", "step_median_ms", "step_p95_ms", "wall_s")
 SUMMARY_FIELDS = ("scenario", "planner", "runs", "success_rate", "time_s", "path_length_m", "bending_energy",
@@ -240,6 +232,7 @@ def _plots(results: list[dict[str, Any]], out: Path) -> list[Path]:
     except ImportError:
         return []
     from ..sim.scenario import load_scenario
+    from ..viz.world_plot import draw_goals, draw_world
 
     paths = []
     for sc_name in dict.fromkeys(r["scenario"] for r in results):
@@ -250,16 +243,10 @@ def _plots(results: list[dict[str, Any]], out: Path) -> list[Path]:
                 first[r["planner"]] = r
         sc = load_scenario(sc_name)
         fig, ax = plt.subplots(figsize=(7, 6))
-        seg = sc.world.segments
-        for s in seg:
-            ax.plot([s[0], s[2]], [s[1], s[3]], "k-", lw=1)
-        for c in sc.world.circles_at(0.0):
-            ax.add_patch(plt.Circle((c[0], c[1]), c[2], color="0.5"))
-        for g in sc.goals:
-            ax.plot(g.x_m, g.y_m, "r*", ms=8)
+        draw_world(ax, sc, legend_entries=False)
+        draw_goals(ax, sc.goals, sc.start)
         for pl, r in first.items():
-            ax.plot(r["traj"][:, 1], r["traj"][:, 2], lw=1.2, label=f"{pl} ({r['end']})")
-        ax.set_aspect("equal")
+            ax.plot(r["traj"][:, 1], r["traj"][:, 2], lw=1.2, label=f"{pl} ({r['end']})", zorder=4)
         ax.set_title(f"{sc_name}: paths (seed {min(r['seed'] for r in rs)})")
         ax.legend(fontsize=7, loc="best")
         p = out / f"paths_{sc_name}.png"

@@ -1,7 +1,7 @@
 """ctypes binding of the SIL libraries (the C API of hil/sil/sil_api.h).
 
-Two backends implement that API: ``native`` (build/sil/libagnav_sil.so: the firmware built for
-the PC against the simulated HAL) and ``avr`` (build/sil/libagnav_avr_sil.so: libsimavr running
+Two backends implement that API: ``native`` (libagnav_sil.so, in build/sil of a checkout: the firmware built for
+the PC against the simulated HAL) and ``avr`` (libagnav_avr_sil.so: libsimavr running
 the real ATmega2560 ELF at 16 MHz, hil/simavr/avr_sil.c). ``Firmware(backend="avr")`` picks the
 second (both are built on demand).
 
@@ -94,11 +94,13 @@ _SIGS: dict[str, tuple[object, list[object]]] = {
 #: Fault modes and names of sil_api.h's fault-injection hooks.
 ENCODER_FAULTS = {"none": 0, "stuck": 1, "disconnected": 2, "noise": 3}
 SONAR_FAULTS = {"none": 0, "timeout": 1, "zero": 2}
-EEPROM_RECORDS = {"calib": 0, "params": 1, "signing": 2, "signing_ts": 3}
+EEPROM_RECORDS = {"calib": 0, "params": 1, "signing": 2, "signing_ts": 3, "calib_copy": 4, "params_copy": 5,
+                  "signing_copy": 6}
 RESET_CAUSES = {"power_on": 0, "watchdog": 1, "external": 2, "brown_out": 3}
 
 _NATIVE_SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_eeprom_idle_calls": (C.c_uint32, []),
+    "sil_eeprom_writes": (C.c_uint32, []),
 }
 
 _AVR_SIGS: dict[str, tuple[object, list[object]]] = {
@@ -110,6 +112,13 @@ _AVR_SIGS: dict[str, tuple[object, list[object]]] = {
     "sil_avr_state": (C.c_int, []),
     "sil_avr_uart_rx_pending": (C.c_uint32, []),
     "sil_avr_resets": (C.c_uint32, []),
+    "sil_avr_set_host_baud": (None, [C.c_uint32]),
+    "sil_avr_uart_link_stats": (None, [C.POINTER(C.c_uint32)]),
+    "sil_avr_set_uart_divisor": (None, [C.c_uint32, C.c_int]),
+    "sil_avr_set_eeprom_write_us": (None, [C.c_uint32]),
+    "sil_avr_eeprom_writes": (C.c_uint32, []),
+    "sil_avr_control_ticks": (C.c_uint32, []),
+    "sil_avr_control_gap_max_us": (C.c_uint32, []),
 }
 
 

@@ -26,12 +26,14 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 import numpy as np
 
+from ..link.calib_wire import CALIB_IN_PROGRESS
 from ..sim.metrics import RunMetrics
 from ..sim.referee import Referee
 from ..sim.runner import RunResult, _standin_params, write_outputs
 from ..sim.controller import Controller, GoalSeekParams
 from ..sim.scenario import Scenario
 from ..types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
+from ..units import milli_to_si
 from .binding import Firmware, _COutputs
 from .host import HostEndpoint
 from .link import LinkChannel, LinkParams, Tlog
@@ -111,35 +113,44 @@ class SilSession:
         self.fw.close()
 
     # ---- start-up --------------------------------------------------------------------------------------
-    def provision(self, timeout_s: float = 3.0, retry_s: float = 0.3) -> None:
+    def provision(self, timeout_s: float = 6.0, retry_s: float = 0.3) -> None:
         """Send the robot's calibration tables over the link (as a set-up tool would), save them to
         EEPROM, and wait for the firmware to accept them, resending what was not acknowledged every
-        ``retry_s`` (the link may lose frames). Raises RuntimeError when refused or unanswered."""
+        ``retry_s`` (the link may lose frames). The save is answered IN_PROGRESS, then ACCEPTED once the
+        firmware has written both slots in the background (~1.7 s at 3.3 ms a byte). Raises RuntimeError
+        when refused or unanswered."""
         uploads = self.plant.calibration_uploads()
         if not uploads:
             return
         want = {tid for tid, *_ in uploads}
         end = self.t_us + int(timeout_s * 1e6)
         acked: dict[int, int] = {}
-        saved = False
+        save_asked = saving = saved = False
         while self.t_us < end and not saved:
-            for tid, pwm, val, neutral in uploads:
-                if acked.get(tid) != 0:
-                    self.host.calib_table(tid, pwm, val, neutral)
-            if want <= {t for t, r in acked.items() if r == 0}:
+            if not save_asked:
+                for tid, pwm, val, neutral in uploads:
+                    if acked.get(tid) != 0:
+                        self.host.calib_table(tid, pwm, val, neutral)
+            if want <= {t for t, r in acked.items() if r == 0} and not saving:
                 self.host.calib_request(0, 1)  # save to EEPROM (clears the CALIB_DEFAULTED health flag)
+                save_asked = True
             self.up.send(self.t_us, self.host.take_tx())
             resend = self.t_us + int(retry_s * 1e6)
-            while self.t_us < min(resend, end):
+            while self.t_us < min(resend, end) and not saved:
                 self._advance()
                 for a in self.host.calib_acks:
-                    if a.table_id in want and a.table_id not in acked or acked.get(a.table_id) != 0:
+                    if save_asked and a.table_id == 0:  # the save's answers (every table was accepted before)
+                        if a.result == CALIB_IN_PROGRESS:
+                            saving = True
+                        elif a.result == 0:
+                            saved = True
+                        else:
+                            raise RuntimeError(f"SIL provisioning: calibration save failed (result {a.result})")
+                    elif a.table_id in want and acked.get(a.table_id) != 0:
                         acked[a.table_id] = a.result
-                    if a.table_id == 0 and a.result == 0 and want <= {t for t, r in acked.items() if r == 0}:
-                        saved = True
                 self.host.calib_acks.clear()
-                if saved:
-                    break
+                if saving:
+                    resend = end  # nothing to resend while the firmware writes
             bad = {t: r for t, r in acked.items() if r != 0}
             if bad:
                 raise RuntimeError(f"SIL provisioning: calibration refused {bad}")
@@ -321,7 +332,7 @@ class PlannerHost:
         if f is None:
             return None
         st = np.array(f.status[:12])
-        r = np.where(st == 0, np.array(f.ranges_mm[:12], dtype=float) * 1e-3, np.nan)
+        r = np.where(st == 0, milli_to_si(np.array(f.ranges_mm[:12], dtype=float)), np.nan)
         return SonarFrame(f.t_us * 1e-6, st != 3, r * 2.0 / 343.0 * 1e6, r)
 
     def _read_laser(self, s: SilSession) -> LaserScan:
@@ -341,7 +352,7 @@ class PlannerHost:
         report = None
         if o.time_boot_ms != self._odo_stamp_ms:
             self._odo_stamp_ms = o.time_boot_ms
-            report = OdometryReport(o.x_m, o.y_m, o.heading_rad, o.time_boot_ms * 1e-3, o.speed_m_s, o.yaw_rate_rad_s)
+            report = OdometryReport(o.x_m, o.y_m, o.heading_rad, milli_to_si(o.time_boot_ms), o.speed_m_s, o.yaw_rate_rad_s)
         tl = self.sc.tilted_laser
         return SensorFrame(
             s.t_s, s.believed_pose(), o.speed_m_s, o.yaw_rate_rad_s, odometry=report,
@@ -427,7 +438,7 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
         metrics = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6],
                                      (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, referee.reason == "arrived",
                                      referee.arrival_s)
-        run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason)
+        run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason, scene=sc)
         status = [(st.t_us * 1e-6, st.time_boot_ms, st.layer, st.reason, st.failsafe_flags, st.steer_cdeg, st.speed_mm_s)
                   for st in s.host.status_log]
         stats = {"up_frames": s.up.frames_sent, "up_lost": s.up.frames_lost, "up_dropped": s.up.frames_dropped,

@@ -42,6 +42,7 @@ class RunResult:
     trajectory: np.ndarray
     end_reason: str  # "arrived", "collision", "fell_in_hole", "timeout"
     step_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time of each planner step, s
+    scene: Scenario | None = None  # the scenario as run (its goals replaced when a goal was given): trajectory.png's world
 
 
 def planner_names() -> list[str]:
@@ -202,7 +203,7 @@ def run_scenario(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
         last.yaw_rad, last.arrival_s, referee.reason == "arrived", referee.arrival_s,
     )
-    return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times))
+    return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times), sc)
 
 
 def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:
@@ -272,13 +273,11 @@ def _pyplot() -> Any:
 
 
 def _try_plot(result: RunResult, path: Path) -> Path | None:
-    plt = _pyplot()
-    if plt is None:
+    """trajectory.png: the run in its world (when the result carries its scenario), the path coloured by speed, the
+    robot's outline every 2 s and at the end; None when matplotlib is not installed."""
+    if _pyplot() is None:
         return None
-    fig, ax = plt.subplots(figsize=(6, 6))
-    ax.plot(result.trajectory[:, 1], result.trajectory[:, 2], "b-", lw=1)
-    ax.set_aspect("equal")
-    ax.set_title(f"{result.scenario} ({result.end_reason})")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    from ..viz.world_plot import plot_run
+
+    return plot_run(path, result.trajectory, result.scene, title=f"{result.scenario} ({result.planner})",
+                    end_reason=result.end_reason)

@@ -525,7 +525,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         world.add_segments(box_segments(rd.num(b, "x_m", p, required=True), rd.num(b, "y_m", p, required=True),
                                         rd.num(b, "size_x_m", p, required=True, lo=0.0, lo_open=True),
                                         rd.num(b, "size_y_m", p, required=True, lo=0.0, lo_open=True),
-                                        math.radians(rd.num(b, "yaw_deg", p, 0.0))))
+                                        math.radians(rd.num(b, "yaw_deg", p, 0.0))), kind="box")
     for i, c in enumerate(rd.tables(data, "circles")):
         p = ("circles", i)
         rd.keys(c, p, {"x_m", "y_m", "radius_m"})
@@ -534,7 +534,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     for i, g in enumerate(rd.tables(data, "polygons")):
         p = ("polygons", i)
         rd.keys(g, p, {"points"})
-        world.add_segments(polyline_segments(rd.points(g, "points", p, 3), closed=True))
+        world.add_segments(polyline_segments(rd.points(g, "points", p, 3), closed=True), kind="polygon")
     for i, m in enumerate(rd.tables(data, "movers")):
         p = ("movers", i)
         rd.keys(m, p, {"radius_m", "speed_m_s", "waypoints", "loop", "start_s"})
@@ -575,7 +575,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
             world.row_lines.append(base + k * spacing * normal)
             world.add_circles(plants_along(world.row_lines[-1], plant_spacing,
                                            rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
-                                           cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps))
+                                           cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps), kind="plant")
     for i, w in enumerate(rd.tables(data, "weeds")):
         p = ("weeds", i)
         rd.keys(w, p, {"region", "count", "radius_m"})
@@ -587,7 +587,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         _room_for_circles(rd, world, n, (*p, "count"), "this many weeds")
         rad = rd.num(w, "radius_m", p, 0.02, lo=0.0, lo_open=True)
         xy = wrng.uniform((reg[0], reg[1]), (reg[2], reg[3]), (n, 2))
-        world.add_circles(np.column_stack((xy, np.full(n, rad))))
+        world.add_circles(np.column_stack((xy, np.full(n, rad))), kind="weed")
     for i, h in enumerate(rd.tables(data, "holes")):
         p = ("holes", i)
         rd.keys(h, p, {"x_m", "y_m", "size_x_m", "size_y_m", "depth_m", "yaw_deg", "shape"})

@@ -240,12 +240,20 @@ class World:
     bounds: tuple[float, float, float, float] = (-10.0, -10.0, 10.0, 10.0)
     # each plant row's design line (k, 2), m: the polyline its plants were laid along before their jitter
     row_lines: list[FloatArray] = field(default_factory=list)
+    # what each block of segments and circles is (``wall``, ``box``, ``polygon``; ``post``, ``plant``, ``weed``),
+    # for drawings: (kind, first index, end index), one entry per add_segments / add_circles call
+    segment_kinds: list[tuple[str, int, int]] = field(default_factory=list)
+    circle_kinds: list[tuple[str, int, int]] = field(default_factory=list)
 
-    def add_segments(self, seg: Segments) -> None:
+    def add_segments(self, seg: Segments, kind: str = "wall") -> None:
+        n0 = len(self.segments)
         self.segments = np.vstack((self.segments, np.asarray(seg, dtype=float).reshape(-1, 4)))
+        self.segment_kinds.append((kind, n0, len(self.segments)))
 
-    def add_circles(self, circ: Circles) -> None:
+    def add_circles(self, circ: Circles, kind: str = "post") -> None:
+        n0 = len(self.circles)
         self.circles = np.vstack((self.circles, np.asarray(circ, dtype=float).reshape(-1, 3)))
+        self.circle_kinds.append((kind, n0, len(self.circles)))
 
     def circles_at(self, t_s: float) -> Circles:
         """Static circles plus the movers' positions at t_s, (nc + nm, 3)."""
@@ -290,7 +298,3 @@ class World:
     @property
     def has_ground_features(self) -> bool:
         return bool(self.holes or self.steps or self.ruts)
-
-    @property
-    def object_count(self) -> int:
-        return len(self.segments) + len(self.circles) + len(self.movers)

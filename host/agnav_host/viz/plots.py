@@ -1,4 +1,4 @@
-"""Matplotlib PNGs of a run (path and active behaviour layer over time) from a tlog summary."""
+"""Matplotlib PNGs of a run (path coloured by speed, active behaviour layer over time) from a tlog summary."""
 
 from __future__ import annotations
 
@@ -14,14 +14,18 @@ def plot_run(summary: TlogSummary, path: str | Path) -> Path:
     from ..calibration.plot import require_matplotlib
 
     plt = require_matplotlib()
+    from .world_plot import draw_run, rows_from_poses
+
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2), dpi=110)
     if summary.poses:
-        xs = [p[1] for p in summary.poses]
-        ys = [p[2] for p in summary.poses]
-        ax1.plot(xs, ys, "-", lw=1.5)
-        ax1.plot(xs[0], ys[0], "go", label="start")
-        ax1.plot(xs[-1], ys[-1], "rs", label="end")
+        rows = rows_from_poses(summary.poses)
+        art = draw_run(ax1, rows)
+        cb = fig.colorbar(art.path, ax=ax1, shrink=0.85, pad=0.02)
+        cb.set_label("speed, m/s (from the poses)")
+        ax1.plot(rows[0, 1], rows[0, 2], "ko", ms=5, label="start")
+        ax1.plot(rows[-1, 1], rows[-1, 2], "rs", ms=5, label="end")
         ax1.legend(fontsize=8)
+        ax1.autoscale_view()
     ax1.set_aspect("equal", adjustable="datalim")
     ax1.set_xlabel("x, m (odometry frame)")
     ax1.set_ylabel("y, m (left)")

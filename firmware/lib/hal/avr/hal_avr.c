@@ -352,16 +352,15 @@ void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len)
     eeprom_read_block(dst, (const void *)(uintptr_t)addr, len);
 }
 
-void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
+bool hal_eeprom_busy(void) { return (EECR & _BV(EEPE)) != 0u; }
+
+bool hal_eeprom_write_byte(uint16_t addr, uint8_t value)
 {
-    /* Only changed bytes are written, 3.3 ms each: a whole calibration or parameter record on a fresh
-     * board (~200 B, ~0.7 s) would outlast the 250 ms watchdog and reset the board mid-record. The
-     * write is bounded, so the watchdog is refreshed per byte (each call waits for the previous byte). */
-    const uint8_t *p = (const uint8_t *)src;
-    for (uint16_t i = 0; i < len; i++) {
-        eeprom_update_byte((uint8_t *)(uintptr_t)(addr + i), p[i]);
-        wdt_reset();
+    if (addr > E2END) {
+        return false;
     }
+    eeprom_write_byte((uint8_t *)(uintptr_t)addr, value); /* sets EEMPE/EEPE and returns: 3.3 ms in the background */
+    return true;
 }
 
 void hal_eeprom_idle(void) {} /* byte-erasable EEPROM: nothing to tidy */

@@ -38,6 +38,10 @@ static struct {
     sim_fifo_t rx[UART_PORTS];
     uint8_t eeprom[SIM_EEPROM_SIZE];
     uint32_t eeprom_idle_calls; /* hal_eeprom_idle(): the application said the robot is at rest */
+    uint32_t eeprom_write_us;      /* programming time of one byte (0: instant) */
+    uint32_t eeprom_busy_until_us; /* hal_eeprom_busy() until this time */
+    uint32_t eeprom_writes;        /* bytes written since sim_reset() */
+    uint16_t eeprom_last_write_addr;
     uint32_t wdt_kicks;
     uint16_t wdt_timeout_ms;
     bool irq_masked;
@@ -246,16 +250,24 @@ void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len)
     }
 }
 
-void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
+bool hal_eeprom_busy(void) { return (int32_t)(sim.eeprom_busy_until_us - sim.now_us) > 0; }
+
+bool hal_eeprom_write_byte(uint16_t addr, uint8_t value)
 {
-    const uint8_t *s = (const uint8_t *)src;
-    for (uint16_t i = 0; i < len; i++) {
-        uint32_t a = (uint32_t)addr + i;
-        if (a < SIM_EEPROM_SIZE) {
-            sim.eeprom[a] = s[i];
-        }
+    sim.eeprom_writes++;
+    sim.eeprom_last_write_addr = addr;
+    sim.eeprom_busy_until_us = sim.now_us + sim.eeprom_write_us;
+    if (addr >= SIM_EEPROM_SIZE) {
+        return false;
     }
+    sim.eeprom[addr] = value;
+    return true;
 }
+
+void sim_eeprom_set_write_us(uint32_t us) { sim.eeprom_write_us = us; }
+void sim_eeprom_settle(void) { sim.eeprom_busy_until_us = sim.now_us; }
+uint32_t sim_eeprom_writes(void) { return sim.eeprom_writes; }
+uint16_t sim_eeprom_last_write_addr(void) { return sim.eeprom_last_write_addr; }
 
 uint8_t *sim_eeprom_bytes(void) { return sim.eeprom; }
 

@@ -12,9 +12,11 @@ extern "C" {
 #endif
 
 #if defined(__AVR__)
-/* Unit tests under simavr share the ATmega2560's 8 KB of RAM with the sim backend. */
-#define SIM_EEPROM_SIZE 1024u
-#define SIM_UART_BUF 256u
+/* Unit tests under simavr share the ATmega2560's 8 KB of RAM with the sim backend: room for the
+ * EEPROM map up to the calibration copy (storage.h), not the chip's whole 4 KB, and for two
+ * signed MAVLink frames (2 x 69 B) in each UART queue. */
+#define SIM_EEPROM_SIZE 1280u
+#define SIM_UART_BUF 160u
 #else
 #define SIM_EEPROM_SIZE 4096u
 #define SIM_UART_BUF 4096u
@@ -53,6 +55,10 @@ uint16_t sim_uart_put_rx(uint8_t port, const uint8_t *src, uint16_t len);
 
 uint8_t *sim_eeprom_bytes(void);          /* direct access for corruption tests */
 uint32_t sim_eeprom_idle_calls(void);     /* hal_eeprom_idle() calls since sim_reset() */
+void sim_eeprom_set_write_us(uint32_t us);  /* each byte keeps hal_eeprom_busy() true this long (0 after reset) */
+void sim_eeprom_settle(void);             /* the byte in flight is done (for writes before the clock runs) */
+uint32_t sim_eeprom_writes(void);         /* hal_eeprom_write_byte() calls since sim_reset() */
+uint16_t sim_eeprom_last_write_addr(void); /* address of the latest of them */
 uint32_t sim_watchdog_kicks(void);
 uint16_t sim_watchdog_timeout_ms(void);
 bool sim_irq_masked(void);

@@ -879,14 +879,23 @@ void hal_eeprom_read(uint16_t addr, void *dst, uint16_t len)
     fe_read(&s_eeprom, addr, dst, len);
 }
 
-void hal_eeprom_write(uint16_t addr, const void *src, uint16_t len)
+/* Busy while the active sector has no room for another byte: the store then moves to the other sector,
+ * an erase that stalls everything running from flash for up to 0.5 s, and that happens only in
+ * hal_eeprom_idle(), at rest. */
+bool hal_eeprom_busy(void)
 {
     eeprom_ready();
-    (void)fe_write(&s_eeprom, addr, src, len);
+    return !fe_has_room(&s_eeprom);
 }
 
-/* At rest: move to the other sector once the active one is half full, so the erase's stall falls
- * here and not while driving (a full sector while driving still moves, correctness first). */
+bool hal_eeprom_write_byte(uint16_t addr, uint8_t value)
+{
+    eeprom_ready();
+    return fe_write(&s_eeprom, addr, &value, 1u);
+}
+
+/* At rest: move to the other sector once the active one is half full (or full, when writes wait for it),
+ * so the erase's stall falls here and never while driving. */
 void hal_eeprom_idle(void)
 {
     if (s_eeprom_ready) {
