@@ -1,8 +1,9 @@
 """Native software-in-the-loop: the real firmware (built for the PC against the simulated HAL)
 in lock-step with the world simulator, a radio link model and the host endpoint.
 
-    build_library            (re)build build/sil/libagnav_sil.so when sources are newer
-    build_avr_library        (re)build build/sil/libagnav_avr_sil.so (the same C API on libsimavr
+    build_library            (re)build libagnav_sil.so when sources are newer (build/sil in a checkout,
+                             the user cache in an installed package: agnav_host._paths)
+    build_avr_library        (re)build libagnav_avr_sil.so (the same C API on libsimavr
                              running the real ATmega2560 ELF; build_avr_elf rebuilds the ELF)
     Firmware                 ctypes binding (one pristine firmware per instance; backend
                              "native" or "avr")

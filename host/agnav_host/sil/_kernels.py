@@ -1,6 +1,7 @@
-"""The SIL's world-side C kernels (world_kernels.c -> build/sil/libagnav_world.so), built on
-demand with the host C compiler (``cc`` or ``$CC``) like the SIL library itself. :func:`kernels`
-returns None when no compiler is available; callers then use their numpy form (same results)."""
+"""The SIL's world-side C kernels (world_kernels.c -> libagnav_world.so: build/sil in a source checkout, the
+keyed cache folder ``<cache>/world-<hash>`` in an installed package), built on demand with the host C compiler
+(``cc`` or ``$CC``) like the SIL library itself. :func:`kernels` returns None when no compiler is available;
+callers then use their numpy form (same results)."""
 
 from __future__ import annotations
 
@@ -10,14 +11,16 @@ import shlex
 import subprocess
 from pathlib import Path
 
-from .build import REPO_ROOT
+from .._paths import CHECKOUT_ROOT, keyed_dir
+from .build import compiler
 
 __all__ = ["KERNELS_SRC", "KERNELS_LIB", "kernels"]
 
 KERNELS_SRC = Path(__file__).with_name("world_kernels.c")
-KERNELS_LIB = REPO_ROOT / "build" / "sil" / "libagnav_world.so"
 # no fast-math and no FMA contraction: the kernels must round exactly as numpy's element-wise ops
 CFLAGS = ["-O2", "-std=gnu11", "-fPIC", "-shared", "-Wall", "-Wextra", "-ffp-contract=off", "-fno-fast-math"]
+KERNELS_LIB = (CHECKOUT_ROOT / "build" / "sil" if CHECKOUT_ROOT is not None
+               else keyed_dir("world", [KERNELS_SRC], [os.environ.get("CC", "cc"), *CFLAGS])) / "libagnav_world.so"
 
 _lib: C.CDLL | None = None
 _tried = False
@@ -25,11 +28,12 @@ _tried = False
 
 def _build() -> Path:
     out = KERNELS_LIB
-    if out.exists() and out.stat().st_mtime >= KERNELS_SRC.stat().st_mtime:
+    if out.exists() and (CHECKOUT_ROOT is None or out.stat().st_mtime >= KERNELS_SRC.stat().st_mtime):
         return out
+    cc = compiler("the world kernels")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + f".tmp{os.getpid()}")
-    cmd = [*shlex.split(os.environ.get("CC", "cc")), *CFLAGS, str(KERNELS_SRC), "-o", str(tmp), "-lm"]
+    cmd = [*cc, *CFLAGS, str(KERNELS_SRC), "-o", str(tmp), "-lm"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         tmp.unlink(missing_ok=True)

@@ -1,31 +1,49 @@
-"""Build the native SIL library (build/sil/libagnav_sil.so) from the firmware sources on demand.
+"""Build the native SIL library (libagnav_sil.so) from the firmware sources on demand.
 
 The library is the real firmware (firmware/src/main.c with -DAGNAV_NO_MAIN, every
 firmware/lib/<module>/*.c, the simulated HAL) plus hil/sil/sil_api.c, compiled by the host C
-compiler (``cc``, or ``$CC``). :func:`build_library` rebuilds only when a source, header or the
-MAVLink dialect is newer than the library. The same command line is what ``make sil`` runs.
+compiler (``cc``, or ``$CC``). In a source checkout it is build/sil/libagnav_sil.so, rebuilt by
+:func:`build_library` when a source, header or the MAVLink dialect is newer (the same command line
+is what ``make sil`` runs); an installed package compiles the sources it ships once into the user
+cache, ``<cache>/sil-<hash of sources, compiler and flags>/libagnav_sil.so`` (agnav_host._paths).
 """
 
 from __future__ import annotations
 
 import os
 import shlex
+import shutil
 import subprocess
 from pathlib import Path
 
-__all__ = ["REPO_ROOT", "LIB_PATH", "sources", "compile_command", "build_library", "SilBuildError"]
+from .._paths import CHECKOUT_ROOT, SOURCE_ROOT, keyed_dir
+from ..protocol import BINDING_INPUTS, _pymavlink_version, bindings_dir, generate_bindings
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-FIRMWARE = REPO_ROOT / "firmware"
-SIL_DIR = REPO_ROOT / "hil" / "sil"
-MAVLINK_C = REPO_ROOT / "build" / "mavlink" / "c"
-LIB_PATH = REPO_ROOT / "build" / "sil" / "libagnav_sil.so"
+__all__ = ["SOURCE_ROOT", "LIB_PATH", "sources", "compile_command", "build_library", "library_path",
+           "compiler", "SilBuildError", "CompilerMissing"]
+
+FIRMWARE = SOURCE_ROOT / "firmware"
+SIL_DIR = SOURCE_ROOT / "hil" / "sil"
+MAVLINK_C = bindings_dir() / "c"
 CFLAGS = ["-O2", "-std=gnu11", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wno-address-of-packed-member",
           "-DAGNAV_NO_MAIN", "-DAGNAV_TARGET_NATIVE", "-Wl,-Bsymbolic"]
 
 
 class SilBuildError(RuntimeError):
     """The SIL library could not be built; the message has the compiler's output."""
+
+
+class CompilerMissing(SilBuildError):
+    """The C compiler a first-use build needs is not installed; the message names the Debian package."""
+
+
+def compiler(what: str) -> list[str]:
+    """The C compiler's command (``$CC`` or ``cc``); CompilerMissing when it is not installed."""
+    cc = shlex.split(os.environ.get("CC", "cc")) or ["cc"]
+    if shutil.which(cc[0]) is None:
+        raise CompilerMissing(f"building {what} needs a C compiler, and {cc[0]!r} is not installed: install the "
+                              "Debian package gcc (sudo apt-get install gcc), or set CC to a C compiler")
+    return cc
 
 
 def _module_dirs() -> list[Path]:
@@ -46,34 +64,50 @@ def _inputs() -> list[Path]:
     for d in _module_dirs():
         out += list(d.rglob("*.h"))
     out += list(SIL_DIR.glob("*.h"))
-    out.append(REPO_ROOT / "protocol" / "agnav.xml")
+    out.append(SOURCE_ROOT / "protocol" / "agnav.xml")
     return out
 
 
-def compile_command(out: Path = LIB_PATH) -> list[str]:
+def library_path() -> Path:
+    """Where the library is (or is built): build/sil in a checkout, the keyed cache folder when installed."""
+    if CHECKOUT_ROOT is not None:
+        return CHECKOUT_ROOT / "build" / "sil" / "libagnav_sil.so"
+    key = [os.environ.get("CC", "cc"), *CFLAGS, f"pymavlink {_pymavlink_version()}"]
+    return keyed_dir("sil", [*_inputs(), *BINDING_INPUTS], key) / "libagnav_sil.so"
+
+
+LIB_PATH = library_path()
+
+
+def compile_command(out: Path | None = None) -> list[str]:
     cc = shlex.split(os.environ.get("CC", "cc"))
-    inc = [f"-I{d}" for d in _module_dirs()] + [f"-I{MAVLINK_C}", f"-I{SIL_DIR}"]
-    return [*cc, *CFLAGS, *inc, *(str(s) for s in sources()), "-o", str(out)]
+    inc = [f"-I{d}" for d in _module_dirs()] + [f"-I{bindings_dir() / 'c'}", f"-I{SIL_DIR}"]
+    return [*cc, *CFLAGS, *inc, *(str(s) for s in sources()), "-o", str(out or library_path())]
 
 
 def _stale(out: Path) -> bool:
     if not out.exists():
         return True
+    if CHECKOUT_ROOT is None:  # a keyed cache folder: its name changes with any input
+        return False
     t = out.stat().st_mtime
     return any(p.exists() and p.stat().st_mtime > t for p in _inputs())
 
 
-def build_library(out: Path = LIB_PATH, force: bool = False) -> Path:
+def build_library(out: Path | None = None, force: bool = False) -> Path:
     """(Re)build the library when missing or older than its inputs; return its path."""
-    from ..protocol import _generator
-
-    _generator().generate("c", REPO_ROOT / "build" / "mavlink")  # no-op when up to date
+    out = out or library_path()
+    if CHECKOUT_ROOT is not None:
+        generate_bindings("c")  # no-op when up to date
     if not force and not _stale(out):
         return out
+    compiler("the SIL library (the firmware for the PC)")
+    if CHECKOUT_ROOT is None:
+        generate_bindings("c")  # once per keyed folder
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + f".tmp{os.getpid()}")
     cmd = compile_command(tmp)
-    r = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
+    r = subprocess.run(cmd, cwd=SOURCE_ROOT, capture_output=True, text=True)
     if r.returncode != 0:
         tmp.unlink(missing_ok=True)
         raise SilBuildError(f"SIL build failed ({shlex.join(cmd)}):\n{r.stderr}")
@@ -87,4 +121,8 @@ if __name__ == "__main__":  # python -m agnav_host.sil.build [--print]
     if "--print" in sys.argv:
         print(shlex.join(compile_command()))
     else:
-        print(build_library(force="--force" in sys.argv))
+        try:
+            print(build_library(force="--force" in sys.argv))
+        except SilBuildError as e:
+            print(f"agnav_host.sil.build: {e}", file=sys.stderr)
+            sys.exit(1)
