@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from ..toml_input import TomlTooDeep, loads_bounded
+
 __all__ = ["HostConfig", "LinkConfig", "RunConfig", "CalibrationConfig", "ArduPilotConfig", "VizConfig", "RobotConfig",
            "FieldConfig", "LaserConfig",
            "ConfigError", "load_config", "default_config_path", "config_template", "to_toml", "validate_config",
@@ -356,8 +358,8 @@ def load_config(path: str | Path | None = None) -> HostConfig:
         return cfg
     try:
         text = p.read_text()
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
+        data = loads_bounded(text)
+    except (tomllib.TOMLDecodeError, TomlTooDeep) as e:
         raise ConfigError(f"{p}: {e}") from None
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"{p}: cannot read: {getattr(e, 'strerror', None) or e}") from None

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..calib import CalibError, default_speed_table, default_steering_table
+from ..toml_input import TomlTooDeep, loads_bounded
 from ..types import Goal, Pose2D
 from .robots import Ackermann, AckermannParams, DiffDrive, DiffDriveParams, Robot
 from .sensors import Laser2D, LaserSpec, SonarRing, SonarSpec, TiltedLaser, laser_preset
@@ -52,6 +53,9 @@ MAX_STEPS = 2_000_000
 MAX_CIRCLES = 1_000_000
 
 Path_ = tuple[str | int, ...]
+
+
+MAX_MAGNITUDE = 1e9  # no length (m), time (s) or speed of a scenario is larger; squares of bigger ones overflow
 
 
 class ScenarioError(ValueError):
@@ -283,6 +287,8 @@ class _Reader:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise self.error((*path, key), f"must be a finite number, got {v!r}")
         v = float(v)
+        if abs(v) > MAX_MAGNITUDE and (hi is None or hi > MAX_MAGNITUDE or lo is None or lo < -MAX_MAGNITUDE):
+            raise self.error((*path, key), f"must be within +-{MAX_MAGNITUDE:g} (metres, seconds, ...), got {v:g}")
         if lo is not None and (v <= lo if lo_open else v < lo):
             raise self.error((*path, key), f"must be {'>' if lo_open else '>='} {lo:g}, got {v:g}")
         if hi is not None and v > hi:
@@ -298,6 +304,8 @@ class _Reader:
             raise self.error((*path, key), f"must be an integer, got {v!r}")
         if v < lo:
             raise self.error((*path, key), f"must be >= {lo}, got {v}")
+        if v > 10**9:
+            raise self.error((*path, key), f"must be <= 1000000000, got {v}")
         return v
 
     def string(self, d: dict[str, Any], key: str, path: Path_, default: str | None = None, choices: tuple[str, ...] | None = None) -> str:
@@ -484,7 +492,9 @@ def _room_for_circles(rd: _Reader, world: World, n: float, path: Path_, what: st
 def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     """Parse and validate a scenario from TOML text; raises ScenarioError."""
     try:
-        data = tomllib.loads(text)
+        data = loads_bounded(text)
+    except TomlTooDeep as e:
+        raise ScenarioError("<toml>", e.line, str(e).split(": ", 1)[1], source) from None
     except tomllib.TOMLDecodeError as e:
         m = re.search(r"line (\d+)", str(e))
         line = int(m.group(1)) if m else None
