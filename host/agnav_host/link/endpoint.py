@@ -8,7 +8,8 @@
 Transports are pymavlink ``mavutil`` connections (device strings as in MAVProxy):
 
     serial:/dev/ttyUSB0:57600   /dev/ttyUSB0 (baud from ``baud``)   USB serial or an XBee in
-                                transparent mode (it is just a serial port)
+    /dev/ttyUSB0,57600  COM3,57600                                  transparent mode (it is just a
+                                serial port); PATH,BAUD is MAVProxy's and Mission Planner's form
     tcp:HOST:PORT               connect (the SIL serves 127.0.0.1:5760)
     udp:HOST:PORT  udpin:...    listen; udpout:HOST:PORT sends to a peer
 
@@ -42,7 +43,7 @@ import stat
 import threading
 import time
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -53,7 +54,7 @@ from .tlog import TlogWriter
 __all__ = ["Endpoint", "LinkDown", "LinkTimeout", "parse_device", "RateMeter", "Subscription",
            "TELEMETRY_BUDGET_BYTES_S", "DeviceSpec"]
 
-log = logging.getLogger("agnav.link")
+log = logging.getLogger(__name__)
 
 #: Default receive budget at 57600 baud (5760 B/s line rate): leaves room for the host's own
 #: traffic, PARAM and calibration exchanges and radio retries.
@@ -154,6 +155,10 @@ def parse_device(device: str, baud: int = 57600) -> DeviceSpec:
             if not host and pfx in ("tcp:", "udpout:", "udpbcast:"):
                 raise ValueError(f"{device!r}: no host: expected {pfx}HOST:PORT, e.g. {pfx}127.0.0.1:5760")
             return DeviceSpec(pfx[:-1], d, baud)
+    path, comma, b = d.rpartition(",")
+    if comma and not d.startswith(("tcp", "udp")):  # MAVProxy's PATH,BAUD (serial:PATH,BAUD too)
+        path = path[len("serial:"):] if path.startswith("serial:") else path
+        return DeviceSpec("serial", _serial_path(path.strip(), device), _baud(b.strip(), device))
     if d.startswith("serial:"):
         rest = d[len("serial:"):]
         path, sep, b = rest.rpartition(":")
@@ -676,13 +681,3 @@ class Endpoint:
         if hb is None:
             raise LinkTimeout(f"no heartbeat from {self.spec} within {timeout:.1f} s")
         return hb
-
-    def stats_dict(self) -> dict[str, Any]:
-        d = asdict(self.stats)
-        d["rx_rate_bytes_s"] = round(self.meter.rate(time.monotonic()), 1)
-        d["signing"] = self.signing
-        if self.signing:
-            s = self.mav.signing
-            d.update(signed_rx_good=s.goodsig_count, signed_rx_bad=s.badsig_count, unsigned_rx=s.unsigned_count,
-                     rejected_rx=s.reject_count)
-        return d
