@@ -23,6 +23,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .atomic import write_atomic
 from .hostloop import Decision, HostLoop, OdometryReport, SensorFrame, firmware_setpoint
 from .lasers import DeviceClock, LaserInfo, LaserMount, LaserSource
 from .link.state import PoseState
@@ -166,8 +167,8 @@ class RunOutputs:
         m = RunMetrics.compute(rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6],
                                (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, arrived,
                                outcome.t_s if arrived else None)
-        (self.dir / "summary.json").write_text(json.dumps(m.to_dict(), indent=2) + "\n", encoding="utf-8")
-        (self.dir / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+        write_atomic(self.dir / "summary.json", json.dumps(m.to_dict(), indent=2) + "\n")
+        write_atomic(self.dir / "run_info.json", json.dumps(info, indent=2) + "\n")
         written += [self.dir / "summary.json", self.dir / "run_info.json"]
         if plot and len(self.rows) > 1:
             png = _plot_run(rows, settings, self.dir / "trajectory.png", outcome.reason)

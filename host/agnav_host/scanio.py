@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_atomic
 from .types import LaserScan, Pose2D
 
 __all__ = ["ScanFileError", "save_scan_csv", "load_scan_csv", "HEADER"]
@@ -92,7 +93,7 @@ def save_scan_csv(scan: LaserScan, path: str | Path) -> Path:
     lines.append(HEADER)
     for a, r in zip(angles, ranges):
         lines.append(f"{float(a)!r},{float(r)!r}")
-    p.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(p, "\n".join(lines) + "\n")
     return p
 
 

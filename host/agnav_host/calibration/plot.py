@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import savefig_atomic
 from ..link.calib_wire import TABLE_STEER, WireTable
 from .fit import FitResult
 
@@ -53,6 +54,6 @@ def plot_fit(fit: FitResult, path: str | Path, previous: WireTable | None = None
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
+    savefig_atomic(fig, out)
     plt.close(fig)
     return out

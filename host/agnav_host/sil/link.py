@@ -25,7 +25,7 @@ import heapq
 import struct
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, Callable
 
 import numpy as np
 
@@ -218,19 +218,57 @@ class LinkChannel:
 class Tlog:
     """Frames with their time, in the .tlog layout (see the module docstring)."""
 
-    def __init__(self, path: str | Path | None = None) -> None:
+    def __init__(self, path: str | Path | None = None, on_error: Callable[[str], None] | None = None) -> None:
+        self.path = None if path is None else Path(path)
         self._f: BinaryIO | None = open(path, "wb") if path is not None else None
         self._mem = bytearray() if path is None else None
         self.frames = 0
+        self.frames_dropped = 0  # after a write error (disk full): the log stops there, the run goes on
+        self.bytes_written = 0
+        self.error: str | None = None
+        self._on_error = on_error
 
     def write(self, t_us: int, frame: bytes) -> None:
         self.frames += 1
         if self._mem is not None:
             self._mem += _U64.pack(t_us)
             self._mem += frame
-        else:
-            assert self._f is not None
-            self._f.write(_U64.pack(t_us) + frame)
+            return
+        if self._f is None:
+            self.frames_dropped += 1
+            return
+        rec = _U64.pack(t_us) + frame
+        try:
+            self._f.write(rec)
+            self.bytes_written += len(rec)
+        except OSError as e:
+            self.frames_dropped += 1
+            self._fail(e)
+
+    def _fail(self, e: OSError) -> None:
+        """The first write error: said once, the file closed with what reached the disk."""
+        f, self._f = self._f, None
+        try:
+            if f is not None:
+                f.close()
+        except OSError:
+            pass
+        if self._on_disk() == 0 and self.path is not None and self.path.is_file():
+            self.path.unlink(missing_ok=True)  # nothing reached the disk: no empty file left behind
+        self._said(e)
+
+    def _on_disk(self) -> int:
+        try:
+            return self.path.stat().st_size if self.path is not None and self.path.is_file() else 0
+        except OSError:
+            return 0
+
+    def _said(self, e: OSError) -> None:
+        if self.error is None:
+            self.error = f"{self.path}: {e.strerror or e}"
+            if self._on_error is not None:
+                self._on_error(f"tlog {self.error}: the log stops here (partial, {self._on_disk()} B on the disk), "
+                               "the run goes on")
 
     def getvalue(self) -> bytes:
         return bytes(self._mem) if self._mem is not None else b""
@@ -239,6 +277,10 @@ class Tlog:
         Path(path).write_bytes(self.getvalue())
 
     def close(self) -> None:
-        if self._f is not None:
-            self._f.close()
-            self._f = None
+        f, self._f = self._f, None
+        if f is None:
+            return
+        try:
+            f.close()
+        except OSError as e:  # the buffered tail could not be written
+            self._said(e)

@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..atomic import write_atomic
 from ..sim.scenario import Scenario
 from ..types import Pose2D
 from .link import Tlog
@@ -216,7 +217,7 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
     t0 = 0
     try:
         s = SilSession(sc, opt.seed, opt.config)
-        tlog = Tlog(opt.tlog_path) if opt.tlog_path else None
+        tlog = Tlog(opt.tlog_path, on_error=lambda m: log(f"agnav sil: {m}")) if opt.tlog_path else None
         if tlog is not None:
             s.up._tlog = s.down._tlog = tlog
         s.provision()
@@ -390,18 +391,18 @@ def _write_truth(opt: ServeOptions, sc: Scenario, truth: list[tuple[float, ...]]
     arr = np.array(truth, dtype=float)
     lines = [",".join(TRAJECTORY_COLUMNS)] + [f"{r[0]:.4f},{r[1]:.6f},{r[2]:.6f},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f},{r[6]:.6f},"
                                               f"{int(r[7])}" for r in arr]
-    (out / "truth.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(out / "truth.csv", "\n".join(lines) + "\n")
     last = sc.goals[-1]
     ref: Any = referee
     arr[:, 0] -= t0_s
     m = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6], (last.x_m, last.y_m),
                            last.yaw_rad, None, ref.reason == "arrived",
                            None if ref.arrival_s is None else ref.arrival_s - t0_s)
-    (out / "summary.json").write_text(json.dumps(m.to_dict(), indent=2) + "\n", encoding="utf-8")
+    write_atomic(out / "summary.json", json.dumps(m.to_dict(), indent=2) + "\n")
     info = {"scenario": sc.name, "seed": opt.seed, "end_reason": ref.reason,
             "arrival_sim_s": ref.arrival_s, "serve_start_sim_s": t0_s, "speedup": opt.speedup,
             "monotonic_at_sim_zero_s": wall0 - t0_s / opt.speedup}
-    (out / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    write_atomic(out / "run_info.json", json.dumps(info, indent=2) + "\n")
     log(f"agnav sil: wrote {out / 'truth.csv'}, {out / 'summary.json'}, {out / 'run_info.json'}")
 
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 import numpy as np
 
+from ..atomic import write_atomic
 from ..link.calib_wire import CALIB_IN_PROGRESS
 from ..sim.metrics import RunMetrics
 from ..sim.referee import Referee
@@ -460,10 +461,10 @@ def write_sil_outputs(res: SilRunResult, out_dir: str | Path, plot: bool = True)
     info = out / "run_info.json"
     d = json.loads(info.read_text(encoding="utf-8"))
     d.update(firmware="sil" if res.backend == "native" else f"sil-{res.backend}", link=res.link_stats)
-    info.write_text(json.dumps(d, indent=2) + "\n", encoding="utf-8")
+    write_atomic(info, json.dumps(d, indent=2) + "\n")
     tl = out / "link.tlog"
-    tl.write_bytes(res.tlog)
+    write_atomic(tl, res.tlog)
     fc = out / "firmware.csv"
     lines = [",".join(FIRMWARE_CSV_COLUMNS)] + [f"{r[0]:.6f}," + ",".join(str(int(v)) for v in r[1:]) for r in res.firmware_status]
-    fc.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(fc, "\n".join(lines) + "\n")
     return [*paths, tl, fc]

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from ..atomic import savefig_atomic, write_atomic
 from ..hostloop import HostLoop, SensorFrame
 from ..types import DriveCommand, Goal, SonarFrame
 
@@ -213,18 +214,17 @@ def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> 
     out.mkdir(parents=True, exist_ok=True)
     written = []
     summary = out / "summary.json"
-    summary.write_text(json.dumps(result.metrics.to_dict(), indent=2) + "\n", encoding="utf-8")
+    write_atomic(summary, json.dumps(result.metrics.to_dict(), indent=2) + "\n")
     written.append(summary)
     info = out / "run_info.json"
-    info.write_text(json.dumps({"scenario": result.scenario, "planner": result.planner, "seed": result.seed,
-                                "end_reason": result.end_reason, "samples": int(len(result.trajectory))}, indent=2) + "\n",
-                    encoding="utf-8")
+    write_atomic(info, json.dumps({"scenario": result.scenario, "planner": result.planner, "seed": result.seed,
+                                   "end_reason": result.end_reason, "samples": int(len(result.trajectory))}, indent=2) + "\n")
     written.append(info)
     traj = out / "trajectory.csv"
     lines = [",".join(TRAJECTORY_COLUMNS)]
     for r in result.trajectory:
         lines.append(f"{r[0]:.3f},{r[1]:.6f},{r[2]:.6f},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f},{r[6]:.6f},{int(r[7])}")
-    traj.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_atomic(traj, "\n".join(lines) + "\n")
     written.append(traj)
     if plot:
         png = _try_plot(result, out / "trajectory.png")
@@ -239,7 +239,7 @@ def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     js = out / "row_distance.json"
-    js.write_text(json.dumps(rd.to_dict(), indent=2) + "\n", encoding="utf-8")
+    write_atomic(js, json.dumps(rd.to_dict(), indent=2) + "\n")
     written = [js]
     plt = _pyplot() if plot else None
     if plt is not None:
@@ -254,7 +254,7 @@ def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) 
         ax.grid(alpha=0.3)
         fig.tight_layout()
         png = out / "row_distance.png"
-        fig.savefig(png, dpi=100)
+        savefig_atomic(fig, png, dpi=100)
         plt.close(fig)
         written.append(png)
     return written

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..atomic import savefig_atomic
 from ..link.replay import TlogSummary
 from ..link.state import LAYER_NAMES
 
@@ -42,6 +43,6 @@ def plot_run(summary: TlogSummary, path: str | Path) -> Path:
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
+    savefig_atomic(fig, out)
     plt.close(fig)
     return out

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
+from ..atomic import savefig_atomic
 from ..types import FloatArray, Goal, Pose2D
 
 if TYPE_CHECKING:
@@ -586,7 +587,7 @@ def plot_run(path: str | Path, rows: FloatArray, scenario: "Scenario | None" = N
     try:
         out = Path(path)
         out.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(out, dpi=dpi, bbox_inches="tight")
+        savefig_atomic(fig, out, dpi=dpi, bbox_inches="tight")
     finally:
         plt.close(fig)
     return out
