@@ -21,7 +21,7 @@ def _at_goal_scenario():
     return dataclasses.replace(sc, goals=[Goal(s.x_m, s.y_m, tolerance_m=0.3)])
 
 
-def _serve(sc, grace_s: float):
+def _serve(sc, grace_s: float, duration_s: float = 30.0):
     build_library()
     box: dict[str, object] = {"log": []}
     up, done = threading.Event(), threading.Event()
@@ -31,7 +31,7 @@ def _serve(sc, grace_s: float):
         up.set()
 
     def run():
-        box["result"] = serve(sc, ServeOptions(tcp=("127.0.0.1", 0), speedup=1.0, duration_s=30.0, stop_at_end=True,
+        box["result"] = serve(sc, ServeOptions(tcp=("127.0.0.1", 0), speedup=1.0, duration_s=duration_s, stop_at_end=True,
                                                end_grace_s=grace_s), log=box["log"].append, ready=ready)
         done.set()
 
@@ -68,3 +68,40 @@ def test_serving_stops_after_the_grace_period_when_the_client_stays():
         assert box["result"].t_s < 3.0 and box["result"].end_reason == "arrived", box["result"]
     finally:
         c.close()
+
+
+def test_a_second_client_is_refused_with_a_statustext_and_the_first_keeps_the_link():
+    from agnav_host.protocol import dialect
+
+    D = dialect()
+    box, done = _serve(load_scenario("timed_static"), grace_s=5.0, duration_s=4.0)
+    host, port = box["addr"]
+    first = socket.create_connection((host, port), timeout=5)
+    time.sleep(0.3)
+    second = socket.create_connection((host, port), timeout=5)
+    second.settimeout(3.0)
+    data = b""
+    try:
+        while True:
+            chunk = second.recv(4096)
+            if not chunk:
+                break
+            data += chunk
+    except socket.timeout:
+        pass
+    second.close()
+    mav = D.MAVLink(None)
+    msgs = [m for m in (mav.parse_buffer(data) or []) if m.get_type() == "STATUSTEXT"]
+    assert msgs and "owns the link" in msgs[0].text, data[:200]
+    assert any("refused" in m for m in box["log"]), box["log"]
+    first.settimeout(1.0)
+    got = 0
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 1.0:  # the first client still gets the robot's telemetry
+        try:
+            got += len(first.recv(4096))
+        except socket.timeout:
+            pass
+    first.close()
+    assert got > 100, got
+    assert done.wait(10)

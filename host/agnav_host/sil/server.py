@@ -173,6 +173,26 @@ class ServeOptions:
     movers_wait: bool = False  # the scenario's walkers wait at their first waypoint until the host drives
 
 
+
+def _refuse_second_client(conn: socket.socket, owner: tuple[str, int], addr: tuple[str, int], fw: object) -> None:
+    """Tell a second TCP client why it is refused (a STATUSTEXT from the robot's system id), then close it."""
+    from ..protocol import dialect
+
+    D = dialect()
+    text = f"refused: {owner[0]}:{owner[1]} owns the link"[:50]
+    try:
+        sysid = int(fw.param_get("SYSID_THISMAV"))  # type: ignore[attr-defined]
+    except Exception:  # noqa: BLE001 -- the refusal must go out whatever the firmware says
+        sysid = 1
+    frame = D.MAVLink_statustext_message(D.MAV_SEVERITY_WARNING, text.encode()).pack(D.MAVLink(None, sysid, 1))
+    try:
+        conn.settimeout(0.5)
+        conn.sendall(frame)
+    except OSError:
+        pass
+    finally:
+        conn.close()
+
 def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m: print(m, file=sys.stderr),
           ready: Callable[[tuple[str, int] | None, str | None], None] | None = None) -> ServeResult:
     """Run until ``duration_s`` of simulated time, Ctrl-C or SIGTERM (the tlog is then complete up to
@@ -210,6 +230,7 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
     s = None
     tlog = None
     client: socket.socket | None = None
+    client_addr: tuple[str, int] = ("", 0)
     scanners: list[_EmulatedScanner] = []
     truth: list[tuple[float, ...]] = []
     referee = None
@@ -295,13 +316,16 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                 if lsock is not None:
                     try:
                         conn, addr = lsock.accept()
-                        conn.setblocking(False)
-                        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                        if client is not None:
-                            drop_client("replaced by a new connection")
-                        s.up.reset_framer()
-                        client = conn
-                        log(f"agnav sil: client {addr[0]}:{addr[1]} connected")
+                        if client is not None:  # one owner at a time: the robot has one radio
+                            _refuse_second_client(conn, client_addr, addr, s.fw)
+                            log(f"agnav sil: refused {addr[0]}:{addr[1]}: {client_addr[0]}:{client_addr[1]} "
+                                "is connected (one client at a time)")
+                        else:
+                            conn.setblocking(False)
+                            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                            s.up.reset_framer()
+                            client, client_addr = conn, addr
+                            log(f"agnav sil: client {addr[0]}:{addr[1]} connected")
                     except BlockingIOError:
                         pass
                 rd = [x for x in (client, master) if x is not None]
