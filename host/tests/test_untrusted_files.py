@@ -231,3 +231,12 @@ def test_the_mutations_reach_the_readers_errors():
     with pytest.raises(ScenarioError):
         parse_scenario(_SCENARIOS[0][: len(_SCENARIOS[0]) // 3])
     assert io  # imported for readers that take streams
+
+
+@pytest.mark.parametrize("section, key, value", [("link", "log_dir", "lo\\u0000gs"), ("viz", "rrd_dir", "a\\nb"),
+                                                 ("link", "key_file", "k\\u0001")])
+def test_a_path_with_a_control_character_is_refused_naming_the_key(tmp_path, section, key, value):
+    p = tmp_path / "host.toml"
+    p.write_text(f'[{section}]\n{key} = "{value}"\n')
+    with pytest.raises(ConfigError, match=rf"\[{section}\] {key}: must not hold control characters"):
+        load_config(p)

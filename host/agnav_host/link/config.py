@@ -224,6 +224,16 @@ def _non_empty(v: Any) -> str | None:
     return None if v.strip() else "must not be empty"
 
 
+def _path_text(v: Any) -> str | None:
+    """A file or directory name: not empty, no NUL or other control character (no file system takes them)."""
+    if not v.strip():
+        return "must not be empty"
+    bad = [c for c in v if ord(c) < 32]
+    if bad:
+        return f"must not hold control characters (found {bad[0]!r}); got {v!r}"
+    return None
+
+
 def _planner(v: Any) -> str | None:
     if not v:
         return None  # firmware layers only
@@ -276,7 +286,8 @@ RULES: dict[str, dict[str, Check]] = {
         "device": _non_empty, "baud": _positive, "sysid": _MAVLINK_ID, "compid": _MAVLINK_ID,
         "target_system": _between(0, 255, " (0 = the first heartbeat seen)"), "heartbeat_hz": _positive,
         "link_timeout_s": _positive, "reconnect_delay_s": _positive, "budget_bytes_s": _positive,
-        "budget_window_s": _positive,
+        "budget_window_s": _positive, "log_dir": _path_text,
+        "key_file": lambda v: None if not v else _path_text(v),
     },
     "run": {
         "control_hz": lambda v: None if math.isfinite(v) and v >= 5.0 else
@@ -310,7 +321,7 @@ RULES: dict[str, dict[str, Check]] = {
         "max_steer_deg": lambda v: None if math.isfinite(v) and 0 < v < 90 else f"must be > 0 and < 90, got {v!r}",
         "wheelbase_m": _positive,
     },
-    "viz": {"rrd_dir": _non_empty},
+    "viz": {"rrd_dir": _path_text},
 }
 
 #: (section, low key, high key): low must be < high.
