@@ -123,3 +123,14 @@ def test_agnav_sil_with_its_tlog_on_a_full_disk_keeps_serving_its_client():
     assert "result" in box, said  # served to the end, no exception
     assert sum("No space left on device" in m for m in said) == 1, said
     assert got > 5000, got  # the client kept getting telemetry after the tlog stopped
+
+
+def test_a_fresh_sil_tlog_has_no_break_in_its_time_stamps(tmp_path):
+    from agnav_host.cli import main
+    from agnav_host.link.replay import summarize_tlog
+
+    out = tmp_path / "o"
+    assert main(["sim", "corridor_obstacles", "--firmware", "sil", "--duration", "3", "--no-rrd", "--no-plot",
+                 "--quiet", "--out", str(out)]) == 0
+    s = summarize_tlog(out / "link.tlog")
+    assert s.breaks == 0 and sum(s.rx_msgs.values()) > 50, s

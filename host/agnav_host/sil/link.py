@@ -223,12 +223,15 @@ class Tlog:
         self._f: BinaryIO | None = open(path, "wb") if path is not None else None
         self._mem = bytearray() if path is None else None
         self.frames = 0
+        self._last_us = 0
         self.frames_dropped = 0  # after a write error (disk full): the log stops there, the run goes on
         self.bytes_written = 0
         self.error: str | None = None
         self._on_error = on_error
 
     def write(self, t_us: int, frame: bytes) -> None:
+        # in file order the stamps never go back: a frame the radio model delivers late is logged when written
+        t_us = self._last_us = max(t_us, self._last_us)
         self.frames += 1
         if self._mem is not None:
             self._mem += _U64.pack(t_us)
