@@ -3,7 +3,7 @@
 Format::
 
     # agnav-scan v1
-    # pose_x_m=1.0,pose_y_m=2.0,pose_yaw_rad=0.5,stamp_s=12.25,range_max_m=10.0
+    # pose_x_m=1.0,pose_y_m=2.0,pose_yaw_rad=0.5,stamp_s=12.25,beams=181,range_max_m=10.0
     angle_rad,range_m
     -2.356194,1.234000
     ...
@@ -35,7 +35,7 @@ __all__ = ["ScanFileError", "save_scan_csv", "load_scan_csv", "HEADER"]
 
 HEADER = "angle_rad,range_m"
 _POSE_KEYS = ("pose_x_m", "pose_y_m", "pose_yaw_rad", "stamp_s")
-_META_KEYS = frozenset((*_POSE_KEYS, "range_max_m", "range_min_m"))
+_META_KEYS = frozenset((*_POSE_KEYS, "range_max_m", "range_min_m", "beams"))
 _ANGLE_LIMIT_RAD = 2.0 * math.pi  # beyond this (or a wider span) the angles are taken to be degrees
 
 
@@ -87,6 +87,7 @@ def save_scan_csv(scan: LaserScan, path: str | Path) -> Path:
     if scan.pose is not None:
         meta += [f"pose_x_m={float(scan.pose.x_m)!r}", f"pose_y_m={float(scan.pose.y_m)!r}", f"pose_yaw_rad={float(scan.pose.yaw_rad)!r}"]
     meta.append(f"stamp_s={float(scan.stamp_s)!r}")
+    meta.append(f"beams={n}")  # so a file cut short is told from a narrower scan
     if math.isfinite(scan.range_max_m):
         meta.append(f"range_max_m={float(scan.range_max_m)!r}")
     lines.append("# " + ",".join(meta))
@@ -163,6 +164,12 @@ def load_scan_csv(path: str | Path) -> LaserScan:
         line_of.append(n)
     if not header_seen:
         raise ScanFileError(f"{p}: no {HEADER!r} header line")
+    if "beams" in meta and meta["beams"] != len(angles):
+        why = "the file is cut short" if len(angles) < meta["beams"] else "more rows than declared"
+        raise ScanFileError(f"{p}:{meta_line['beams']}: metadata beams={meta['beams']:g} but the file holds "
+                            f"{len(angles)} beams ({why})")
+    if "beams" in meta and not text.endswith("\n") and angles:  # our files end each line: its last number may be cut
+        raise ScanFileError(f"{p}:{line_of[-1]}: the last line has no end (the file is cut short)")
     if len(angles) < 2:
         raise ScanFileError(f"{p}: need at least 2 beams, got {len(angles)}")
     ang = np.asarray(angles)

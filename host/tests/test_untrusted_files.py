@@ -240,3 +240,11 @@ def test_a_path_with_a_control_character_is_refused_naming_the_key(tmp_path, sec
     p.write_text(f'[{section}]\n{key} = "{value}"\n')
     with pytest.raises(ConfigError, match=rf"\[{section}\] {key}: must not hold control characters"):
         load_config(p)
+
+
+@pytest.mark.parametrize("keep", [0.5, 0.9, 0.999])
+def test_a_scan_file_cut_short_is_refused(tmp_path, keep):
+    p = tmp_path / "s.csv"
+    p.write_text(_SCAN[: int(len(_SCAN) * keep)])
+    with pytest.raises(ScanFileError, match="cut short|expected 2 columns"):  # a line cut before its comma
+        load_scan_csv(p)
