@@ -35,7 +35,8 @@ __all__ = ["ScanFileError", "save_scan_csv", "load_scan_csv", "HEADER"]
 
 HEADER = "angle_rad,range_m"
 _POSE_KEYS = ("pose_x_m", "pose_y_m", "pose_yaw_rad", "stamp_s")
-_META_KEYS = frozenset((*_POSE_KEYS, "range_max_m", "range_min_m", "beams"))
+_META_ORDER = (*sorted((*_POSE_KEYS, "range_max_m", "range_min_m")), "beams")  # as the messages list them
+_META_KEYS = frozenset(_META_ORDER)
 _ANGLE_LIMIT_RAD = 2.0 * math.pi  # beyond this (or a wider span) the angles are taken to be degrees
 
 
@@ -49,7 +50,7 @@ _COMMENT_KEY = re.compile(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*[=:]")
 def _unknown_key_text(key: str) -> str:
     close = difflib.get_close_matches(key, sorted(_META_KEYS), n=1, cutoff=0.8)
     hint = f"did you mean {close[0]}? " if close else ""
-    return f"unknown metadata key {key!r}; {hint}known: {', '.join(sorted(_META_KEYS))}"
+    return f"unknown metadata key {key!r}; {hint}known: {', '.join(_META_ORDER)}"
 
 
 def _misspelt_meta(body: str) -> str | None:
