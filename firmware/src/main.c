@@ -27,101 +27,19 @@
 #define KEY_PROVISION_WINDOW_MS 10000u /* unsigned SETUP_SIGNING accepted this long after a power-on */
 #define SONAR_STALE_MS 500u /* no new ring for this long -> sonar fault */
 
-/* ---- parameters: module defaults are set in defaults(), stored ones loaded over them --- */
-static uint8_t p_sysid;
-static uint8_t p_drive_kind;    /* drive_kind_t: 0 Ackermann (ref 003 car), 1 differential */
-static uint8_t p_enc_count;     /* wheels with an encoder, 1..4 */
-static uint8_t p_enc_mode;      /* encoder_mode_t: 0 quadrature x4, 1 Hall */
-static uint8_t p_enc_invert;    /* bit i: encoder i counts the other way (a wheel mounted mirrored) */
-static int32_t p_enc_nm_per_count;
-static uint16_t p_track_mm;
-static uint16_t p_wheelbase_mm;
-static uint8_t p_sonar_count;   /* 0 none, 1 SRF05 front, 6 HC-SR04, 12 ring */
-static uint8_t p_mode_flags;    /* BHV_MODE_* enabled at boot */
-static behaviour_params_t p_bhv;
-static health_params_t p_health;
-static uint8_t p_sign_telem;    /* 1: sign sent frames while a key is set (received ones are always checked) */
-
-/* Keys are append-only (STYLE: never reorder or reuse a row). Units are in the names. */
-static const PARAMS_ROM param_def_t PARAMS[] = {
-    {"SYSID_THISMAV", PARAM_U8, &p_sysid, 1, 250},
-    {"DRIVE_KIND", PARAM_U8, &p_drive_kind, 0, 1},
-    {"ENC_COUNT", PARAM_U8, &p_enc_count, 1, 4},
-    {"ENC_MODE", PARAM_U8, &p_enc_mode, 0, 1},
-    {"ENC_NM_PER_CNT", PARAM_I32, &p_enc_nm_per_count, 1000, 16000000},
-    {"TRACK_MM", PARAM_U16, &p_track_mm, 50, 2000},
-    {"WHEELBASE_MM", PARAM_U16, &p_wheelbase_mm, 50, 2000},
-    {"SONAR_COUNT", PARAM_U8, &p_sonar_count, 0, 12},
-    {"BHV_MODES", PARAM_U8, &p_mode_flags, 0, 7},
-    {"LINK_TIMEOUT_MS", PARAM_U16, &p_bhv.link_timeout_ms, 100, 5000},
-    {"MAX_SPEED_MM_S", PARAM_I16, &p_bhv.max_speed_mm_s, 0, 3000},
-    {"MAX_STEER_CDEG", PARAM_I16, &p_bhv.max_steer_cdeg, 0, 4500},
-    {"AVOID_STOP_MM", PARAM_U16, &p_bhv.avoid_stop_mm, 50, 3000},
-    {"AVOID_BACKOFF_MM", PARAM_U16, &p_bhv.avoid_backoff_mm, 0, 500},
-    {"AVOID_WAIT_MS", PARAM_U16, &p_bhv.avoid_wait_ms, 0, 10000},
-    {"WALL_R0_MM", PARAM_U16, &p_bhv.wall_r0_mm, 0, 1000},
-    {"WALL_SPEED_MM_S", PARAM_I16, &p_bhv.wall_speed_mm_s, 0, 2000},
-    {"WALL_CANYON_MS", PARAM_U16, &p_bhv.wall_canyon_ms, 0, 10000},
-    {"GOAL_SPEED_MM_S", PARAM_I16, &p_bhv.goal_speed_mm_s, 0, 2000},
-    {"GOAL_TOL_MM", PARAM_U16, &p_bhv.goal_tol_mm, 10, 2000},
-    {"HOST_TIMEOUT_MS", PARAM_U16, &p_bhv.host_timeout_ms, 100, 5000},
-    {"MAN_TIMEOUT_MS", PARAM_U16, &p_bhv.manual_timeout_ms, 100, 5000},
-    {"AVOID_CONE_CDEG", PARAM_I16, &p_bhv.avoid_cone_cdeg, 500, 9000},
-    {"AVOID_MOVE_MM_S", PARAM_I16, &p_bhv.avoid_moving_mm_s, 0, 500},
-    {"AVOID_STOP_MS", PARAM_U16, &p_bhv.avoid_stop_ms, 0, 5000},
-    {"AVOID_BACK_MM_S", PARAM_I16, &p_bhv.avoid_backoff_speed_mm_s, 20, 1000},
-    {"AVOID_REAR_MM", PARAM_U16, &p_bhv.avoid_rear_clear_mm, 0, 2000},
-    {"WALL_DT_MS", PARAM_U16, &p_bhv.wall_dt_ms, 20, 1000},
-    {"WALL_IMAX_STEPS", PARAM_U8, &p_bhv.wall_imax_steps, 1, 100},
-    {"WALL_IMIN_STEPS", PARAM_U8, &p_bhv.wall_imin_steps, 1, 200},
-    {"WALL_DEADBAND", PARAM_U16, &p_bhv.wall_deadband, 0, 10000},
-    {"WALL_GAIN_Q4", PARAM_U8, &p_bhv.wall_gain_q4, 0, 255},
-    {"WALL_TURN_CDEG", PARAM_I16, &p_bhv.wall_turn_steer_cdeg, 0, 4500},
-    {"WALL_TIE_DIR", PARAM_I8, &p_bhv.wall_tie_dir, -1, 1},
-    {"GOAL_MIN_MM_S", PARAM_I16, &p_bhv.goal_min_speed_mm_s, 0, 2000},
-    {"GOAL_SLOW_MM", PARAM_U16, &p_bhv.goal_slow_mm, 0, 10000},
-    {"HLTH_ENC_MS", PARAM_U16, &p_health.enc_stuck_ms, 0, 10000},
-    {"HLTH_EDGE_MAX", PARAM_U16, &p_health.enc_edges_max, 0, 60000},
-    {"HLTH_SONAR_FR", PARAM_U8, &p_health.sonar_fault_frames, 0, 50},
-    {"HLTH_ZERO_FR", PARAM_U8, &p_health.sonar_zero_frames, 0, 100},
-    {"SIGN_TELEM", PARAM_U8, &p_sign_telem, 0, 1},
-    {"ENC_INVERT", PARAM_U8, &p_enc_invert, 0, 15},
+/* ---- parameters: each module declares its rows (lib/<module>/<module>_params.c, docs/parameters.md);
+ * params_init() writes their defaults, params_load() the stored values over them ------------------ */
+static const PARAMS_ROM param_group_ref_t PARAM_GROUPS[] = {
+    &LINK_PARAM_GROUP,      /* SYSID_THISMAV */
+    &DRIVE_PARAM_GROUP,     /* DRIVE_KIND, TRACK_MM */
+    &ENCODER_PARAM_GROUP,   /* ENC_* */
+    &ODOMETRY_PARAM_GROUP,  /* WHEELBASE_MM */
+    &SONAR_RING_PARAM_GROUP, /* SONAR_COUNT */
+    &BEHAVIOUR_PARAM_GROUP, /* BHV_MODES, the layers' tunables */
+    &HEALTH_PARAM_GROUP,    /* HLTH_* */
+    &SIGNING_PARAM_GROUP,   /* SIGN_TELEM */
 };
-#define PARAM_COUNT (sizeof PARAMS / sizeof PARAMS[0])
-
-/* Build-time overrides of the robot profile (benchmark and board variants use them). */
-#ifndef AGNAV_DEFAULT_DRIVE_KIND
-#define AGNAV_DEFAULT_DRIVE_KIND DRIVE_ACKERMANN
-#endif
-#ifndef AGNAV_DEFAULT_ENC_COUNT
-#define AGNAV_DEFAULT_ENC_COUNT 1u
-#endif
-#ifndef AGNAV_DEFAULT_ENC_MODE
-#define AGNAV_DEFAULT_ENC_MODE ENCODER_MODE_HALL
-#endif
-#ifndef AGNAV_DEFAULT_ENC_NM_PER_CNT
-#define AGNAV_DEFAULT_ENC_NM_PER_CNT 13550000L /* ref 003 car: 16 magnets, 13.55 mm per pulse */
-#endif
-#ifndef AGNAV_DEFAULT_MODES
-#define AGNAV_DEFAULT_MODES BHV_MODE_AVOID
-#endif
-
-static void defaults(void)
-{
-    p_sysid = 1u;
-    p_drive_kind = AGNAV_DEFAULT_DRIVE_KIND;
-    p_enc_count = AGNAV_DEFAULT_ENC_COUNT;
-    p_enc_mode = AGNAV_DEFAULT_ENC_MODE;
-    p_enc_invert = 0u;
-    p_enc_nm_per_count = AGNAV_DEFAULT_ENC_NM_PER_CNT;
-    p_track_mm = 191u;
-    p_wheelbase_mm = 174u;          /* ref 003 car */
-    p_sonar_count = 12u;
-    p_mode_flags = AGNAV_DEFAULT_MODES;
-    p_bhv = BEHAVIOUR_PARAMS_DEFAULT;
-    p_health = HEALTH_PARAMS_DEFAULT;
-    p_sign_telem = 1u;
-}
+#define PARAM_GROUP_COUNT ((uint8_t)(sizeof PARAM_GROUPS / sizeof PARAM_GROUPS[0]))
 
 /* ---- state ---------------------------------------------------------------------------------- */
 static behaviour_in_t s_in;
@@ -136,7 +54,6 @@ static bool s_frame_fault; /* a sensor of the frame in s_in.sonar is SONAR_FAULT
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
 
 /* ---- tasks ---------------------------------------------------------------------------------- */
-/* AGNAV_CALIB_TABLE (write) and AGNAV_CALIB_REQUEST (read / save / defaults), from link_poll(). */
 /* The records lib/storage writes (map in storage.h). */
 void storage_record_slots(uint8_t record, uint16_t *main_addr, uint16_t *copy_addr, uint16_t *len)
 {
@@ -170,14 +87,16 @@ static void send_calib_ack(uint8_t id, uint8_t result)
     send(&msg);
 }
 
+/* AGNAV_CALIB_TABLE (write a table this output stage can drive) and AGNAV_CALIB_REQUEST (read: the
+ * table is the answer; save: lib/storage writes the tables, answered IN_PROGRESS; defaults), from
+ * link_poll(). */
 static void on_calib(const mavlink_message_t *in)
 {
-    mavlink_message_t msg;
-    uint8_t result;
+    calib_table_t t;
     uint8_t id;
+    uint8_t result;
     if (in->msgid == MAVLINK_MSG_ID_AGNAV_CALIB_TABLE) {
         mavlink_agnav_calib_table_t m;
-        calib_table_t t;
         mavlink_msg_agnav_calib_table_decode(in, &m);
         id = m.table_id;
         result = link_calib_from_msg(&m, &t);
@@ -190,7 +109,6 @@ static void on_calib(const mavlink_message_t *in)
     } else {
         id = mavlink_msg_agnav_calib_request_get_table_id(in);
         uint8_t action = mavlink_msg_agnav_calib_request_get_action(in);
-        calib_table_t t;
         if (action == AGNAV_CALIB_ACTION_SAVE) {
             storage_request(STORAGE_CALIB); /* the final answer comes from task_link when it is written */
             s_calib_save_id = id;
@@ -199,6 +117,7 @@ static void on_calib(const mavlink_message_t *in)
             result = calib_get_default(id, &t) ? link_calib_result(calib_set_table(id, &t)) : AGNAV_CALIB_BAD_TABLE;
         } else if (calib_get_table(id, &t)) {
             mavlink_agnav_calib_table_t m;
+            mavlink_message_t msg;
             link_calib_to_msg(id, &t, &m);
             mavlink_msg_agnav_calib_table_encode(link_sysid(), link_compid(), &msg, &m);
             send(&msg);
@@ -212,7 +131,7 @@ static void on_calib(const mavlink_message_t *in)
 
 static uint8_t s_param_changes; /* params_changes() when the modules last took the values */
 
-/* PARAM_SET and PREFLIGHT_STORAGE (load) change the variables of the PARAMS table; the modules that
+/* PARAM_SET and PREFLIGHT_STORAGE (load) change the modules' parameter variables; the modules that
  * keep a copy or derive settings from them take the new values here, before the next control tick.
  * The robot's build (DRIVE_KIND, ENC_*, TRACK_MM, WHEELBASE_MM, SONAR_COUNT), SYSID_THISMAV and
  * BHV_MODES (the layers enabled at boot) wait for the next boot. */
@@ -222,14 +141,14 @@ static void apply_params(void)
         return;
     }
     s_param_changes = params_changes();
-    behaviour_set_params(&p_bhv);
-    health_set_params(&p_health);
-    link_set_manual_limits(p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s);
+    behaviour_set_params(&behaviour_params);
+    health_set_params(&health_params);
+    link_set_manual_limits(behaviour_params.max_steer_cdeg, behaviour_params.max_speed_mm_s);
 }
 
 static void task_link(void)
 {
-    signing_set_sign_telemetry(p_sign_telem != 0u); /* SIGN_TELEM applies at once */
+    signing_set_sign_telemetry(signing_param_sign_telem != 0u); /* SIGN_TELEM applies at once */
     link_poll(hal_time_ms());
     storage_tick(); /* a saved record, a byte at a time: never waits for the EEPROM */
     uint8_t failed;
@@ -303,7 +222,7 @@ static void update_odometry(uint16_t *count_lo, uint16_t *edges_lo)
     encoder_update(hal_time_us());
     encoder_motion_t m[ENCODER_MAX];
     s_implausible = 0u;
-    for (uint8_t i = 0; i < p_enc_count; i++) {
+    for (uint8_t i = 0; i < encoder_params.count; i++) {
         encoder_motion(i, &m[i]);
         count_lo[i] = (uint16_t)m[i].count;
         edges_lo[i] = (uint16_t)m[i].edges;
@@ -312,10 +231,10 @@ static void update_odometry(uint16_t *count_lo, uint16_t *edges_lo)
             s_implausible = (uint8_t)(s_implausible | (1u << i));
         }
     }
-    if (p_drive_kind == DRIVE_DIFFERENTIAL && p_enc_count >= 2u) {
+    if (drive_params.kind == DRIVE_DIFFERENTIAL && encoder_params.count >= 2u) {
         int32_t l_um = m[0].delta_um, r_um = m[1].delta_um;
         int32_t l_v = m[0].speed_mm_s, r_v = m[1].speed_mm_s;
-        if (p_enc_count >= 4u) { /* skid steer: wheels 2 (left) and 3 (right) averaged in */
+        if (encoder_params.count >= 4u) { /* skid steer: wheels 2 (left) and 3 (right) averaged in */
             /* >> 1, not / 2: avr-gcc -Os calls a ~600-cycle division routine for a signed / 2. */
             l_um = (l_um + m[2].delta_um) >> 1;
             r_um = (r_um + m[3].delta_um) >> 1;
@@ -325,7 +244,7 @@ static void update_odometry(uint16_t *count_lo, uint16_t *edges_lo)
         odom_update_diff(l_um, r_um, l_v, r_v);
     } else {
         int32_t rear_um = m[0].delta_um, rear_v = m[0].speed_mm_s;
-        if (p_enc_count >= 2u) { /* two rear wheels: their mean is the axle centre */
+        if (encoder_params.count >= 2u) { /* two rear wheels: their mean is the axle centre */
             rear_um = (rear_um + m[1].delta_um) >> 1;
             rear_v = (rear_v + m[1].speed_mm_s) >> 1;
         }
@@ -341,7 +260,7 @@ static void check_encoders(uint32_t now_ms, const uint16_t *count, const uint16_
     /* Not in calibration mode (raw PWM): its sweep drives below the motion threshold on purpose. */
     bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && link_state()->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
     bool driving = !raw && s_out.speed_mm_s != 0 &&
-                   (p_drive_kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
+                   (drive_params.kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
     health_encoders(now_ms, driving, count, edges, (uint8_t)(encoder_faults() | s_implausible));
 }
 
@@ -378,43 +297,21 @@ static void task_control(void)
     update_odometry(count_lo, edges_lo);
     check_encoders(now_ms, count_lo, edges_lo);
     report_health();
-    odom_pose_t pose;
-    odom_get(&pose);
 
-    const link_state_t *ls = link_state();
-    behaviour_in_t *in = &s_in;
+    behaviour_in_t *in = &s_in; /* the sonar frame is written by task_sonar_frame */
     in->now_ms = now_ms;
-    in->host_steer_cdeg = ls->setpoint.steer_cdeg;
-    in->host_speed_mm_s = ls->setpoint.speed_mm_s;
-    if (ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM && ls->setpoint.speed_pwm != 0u && ls->setpoint.speed_mm_s == 0) {
-        in->host_speed_mm_s = 1; /* raw forward (calibration): the avoid layer must see it before the wheels do */
-    }
-    in->host_rx_ms = ls->setpoint.rx_ms;
-    in->host_valid = ls->setpoint.valid;
-    in->heartbeat_rx_ms = ls->host_heartbeat_ms;
-    in->heartbeat_valid = ls->host_seen;
-    in->manual_steer_cdeg = ls->manual.steer_cdeg;
-    in->manual_speed_mm_s = ls->manual.speed_mm_s;
-    in->manual_rx_ms = ls->manual.rx_ms;
-    in->manual_valid = ls->manual.valid;
-    in->estop = ls->estop;
+    link_behaviour_inputs(in);
+    odom_behaviour_inputs(in);
     in->encoder_fault = encoder_faults() != 0u || health_encoder_fault();
     in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || s_frame_fault ||
                                       health_sonar_fault());
     in->reset_was_watchdog = s_watchdog_boot;
     /* "Stored configuration not in use": calibration defaulted, or a corrupt parameter record. */
     in->calib_defaulted = (calib_health() & CALIB_DEFAULTED) != 0u || s_params_corrupt;
-    in->x_mm = pose.x_mm;
-    in->y_mm = pose.y_mm;
-    in->heading_cdeg = (int16_t)pose.heading_cdeg;
-    in->speed_mm_s = (int16_t)pose.speed_mm_s;
-    in->goal_x_mm = ls->goal.x_mm;
-    in->goal_y_mm = ls->goal.y_mm;
-    in->goal_active = ls->goal.active;
-    in->mode_flags = ls->behaviour_enable;
 
     behaviour_step(in, &s_out);
 
+    const link_state_t *ls = link_state();
     bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
     if (raw) {
         drive_apply_raw(ls->setpoint.steer_pwm, ls->setpoint.speed_pwm, ls->setpoint.speed_mm_s < 0 ? -1 : 1);
@@ -423,11 +320,11 @@ static void task_control(void)
     } else {
         drive_apply(s_out.steer_cdeg, s_out.speed_mm_s);
     }
-    if (p_enc_mode == ENCODER_MODE_HALL) { /* the hint only signs Hall pulses */
+    if (encoder_params.mode == ENCODER_MODE_HALL) { /* the hint only signs Hall pulses */
         const drive_output_t *o = drive_output();
-        for (uint8_t i = 0; i < p_enc_count; i++) {
+        for (uint8_t i = 0; i < encoder_params.count; i++) {
             int8_t hint = o->direction;
-            if (p_drive_kind == DRIVE_DIFFERENTIAL && !raw) { /* per side: a turn on the spot spins them apart */
+            if (drive_params.kind == DRIVE_DIFFERENTIAL && !raw) { /* per side: a turn on the spot spins them apart */
                 int16_t side = (i & 1u) != 0u ? o->right_mm_s : o->left_mm_s; /* wheels 0, 2 left; 1, 3 right */
                 hint = side > 0 ? 1 : side < 0 ? -1 : 0; /* 0: keeps the last sign while stopping */
             }
@@ -467,7 +364,7 @@ static void send_encoder_status(uint32_t now_ms)
     int32_t count[4] = {0, 0, 0, 0};
     int16_t speed[4] = {0, 0, 0, 0};
     uint16_t errors[4] = {0, 0, 0, 0};
-    for (uint8_t i = 0; i < p_enc_count; i++) {
+    for (uint8_t i = 0; i < encoder_params.count; i++) {
         encoder_snapshot_t snap;
         encoder_motion_t m;
         encoder_snapshot(i, &snap);
@@ -476,7 +373,7 @@ static void send_encoder_status(uint32_t now_ms)
         speed[i] = (int16_t)m.speed_mm_s;
         errors[i] = (uint16_t)snap.errors;
     }
-    mavlink_msg_agnav_encoder_status_pack(link_sysid(), link_compid(), &msg, now_ms, count, speed, errors, p_enc_count);
+    mavlink_msg_agnav_encoder_status_pack(link_sysid(), link_compid(), &msg, now_ms, count, speed, errors, encoder_params.count);
     send(&msg);
 }
 
@@ -623,20 +520,6 @@ static const sched_task_t TASKS[TASK_COUNT] = {
 };
 _Static_assert(sizeof TASKS / sizeof TASKS[0] == TASK_COUNT, "TASK_COUNT matches the table");
 
-static const sonar_ring_cfg_t *ring_for(uint8_t count)
-{
-    switch (count) {
-    case 12u:
-        return &SONAR_RING_12_SDLG;
-    case 6u:
-        return &SONAR_RING_6_HCSR04;
-    case 1u:
-        return &SONAR_RING_1_SRF05;
-    default:
-        return 0;
-    }
-}
-
 /* Boot report: once, as STATUSTEXT (docs/safety.md "Controller faults"). */
 static void report_boot(hal_reset_cause_t cause)
 {
@@ -681,8 +564,7 @@ void agnav_setup(void)
     s_telem1_phase = 0u;
     s_telem_slot = s_telem_round = 0u;
     s_frame_ms = hal_time_ms();
-    defaults();
-    params_init(PARAMS, (uint16_t)PARAM_COUNT);
+    params_init(PARAM_GROUPS, PARAM_GROUP_COUNT);
     storage_init();
     params_result_t params_rc = params_load();
     s_params_corrupt = params_rc == PARAMS_CORRUPT;
@@ -698,36 +580,34 @@ void agnav_setup(void)
         }
     }
 
-    encoder_cfg_t enc[ENCODER_MAX];
-    memset(enc, 0, sizeof enc);
-    for (uint8_t i = 0; i < p_enc_count; i++) {
-        enc[i].mode = p_enc_mode;
-        enc[i].invert = (uint8_t)((p_enc_invert >> i) & 1u);
-        enc[i].travel_per_count_nm = (uint32_t)p_enc_nm_per_count;
-    }
-    encoder_init(p_enc_count, enc);
-    odom_cfg_t oc = {p_drive_kind == DRIVE_DIFFERENTIAL ? 0u : 1u, p_track_mm, p_wheelbase_mm};
+    encoder_init_params(&encoder_params);
+    odom_cfg_t oc = {drive_params.kind == DRIVE_DIFFERENTIAL ? ODOM_MODEL_DIFF : ODOM_MODEL_ACKERMANN,
+                     drive_params.track_mm, odom_param_wheelbase_mm};
     odom_init(&oc);
-    s_ring = ring_for(p_sonar_count);
+    s_ring = sonar_ring_for_count(sonar_ring_param_count);
     if (s_ring != 0) {
         sonar_ring_init(s_ring);
     }
-    behaviour_init(&p_bhv, s_ring);
-    health_init(&p_health, p_enc_count);
+    behaviour_init(&behaviour_params, s_ring);
+    health_init(&health_params, encoder_params.count);
     s_param_changes = params_changes();
-    drive_cfg_t dc = {p_drive_kind, p_track_mm, 0u, 0u};
-    drive_init(&dc);
+    drive_init(&drive_params);
 
     /* The signing key may be provisioned unsigned only right after a power-on or external
      * reset: on the Mega, opening the USB serial port resets the board (DTR auto-reset), so
      * this is "someone at the robot with a cable". Watchdog / brown-out boots: no window. */
     uint16_t window_ms = (cause == HAL_RESET_POWER_ON || cause == HAL_RESET_EXTERNAL) ? KEY_PROVISION_WINDOW_MS : 0u;
-    link_cfg_t lc = {p_sysid, MAV_COMP_ID_AUTOPILOT1, p_bhv.max_steer_cdeg, p_bhv.max_speed_mm_s, on_calib, window_ms,
+    link_cfg_t lc = {link_param_sysid,
+                     MAV_COMP_ID_AUTOPILOT1,
+                     behaviour_params.max_steer_cdeg,
+                     behaviour_params.max_speed_mm_s,
+                     on_calib,
+                     window_ms,
                      &s_stats[TASK_CONTROL].next_due_us};
     hal_uart_init(HAL_UART_LINK, 57600u);
     link_init(&lc);
-    signing_set_sign_telemetry(p_sign_telem != 0u); /* before the boot report goes out */
-    link_state()->behaviour_enable = p_mode_flags;
+    signing_set_sign_telemetry(signing_param_sign_telem != 0u); /* before the boot report goes out */
+    link_state()->behaviour_enable = behaviour_boot_modes;
     report_boot(cause);
     if (signing_state() == SIGNING_KEY_CORRUPT) {
         link_send_statustext(MAV_SEVERITY_CRITICAL, LINK_TEXT("signing: key record corrupt, all frames refused; re-provision"));

@@ -55,9 +55,11 @@
  * 2 ticks per us), H-bridge duty = OCR4A / OCR4B, direction = PH5 / PH6. Watchdog kicks are
  * the WDR instructions executed, the timeout is WDTCSR's prescaler.
  *
- * Parameters. The firmware's parameter table (PARAMS in main.c, in flash: name[17],
- * type int16, value pointer uint16, min int32, max int32 = 29 bytes a row) is found by its
- * ELF symbol; sil_param_get/set read and write the modules' variables in the AVR's RAM
+ * Parameters. main.c's list of parameter groups (PARAM_GROUPS, in flash: one uint16 pointer per
+ * group to {uint16 rows pointer, uint8 count}) is found by its ELF symbol; each group's rows (in
+ * flash: name[17], index uint8, type uint8, value pointer uint16, min, max, default int32 = 33
+ * bytes a row) are read and put in index order, the order of PARAM_VALUE and of the EEPROM
+ * record. sil_param_get/set read and write the modules' variables in the AVR's RAM
  * (range-checked like params_set()); sil_param_save() writes params.c's EEPROM record
  * {magic 0xA61D, count, int32 values, CRC-16/CCITT-FALSE} at PARAMS_EEPROM_ADDR, which the
  * firmware loads at its next boot. sil_reboot() keeps the EEPROM and powers on a new core.
@@ -88,7 +90,8 @@
 #include <unistd.h>
 
 #define PARAMS_MAGIC 0xA61Du        /* params.c */
-#define PARAM_ROW_BYTES 29u         /* avr-gcc layout of param_def_t */
+#define PARAM_ROW_BYTES 33u         /* avr-gcc layout of param_def_t */
+#define PARAM_GROUP_BYTES 3u        /* avr-gcc layout of param_group_t */
 #define PARAMS_MAX 64u
 
 #define F_CPU_HZ 16000000ull
@@ -118,7 +121,7 @@ typedef sil_event_t ev_t;
 
 typedef struct {
     char name[17];
-    int16_t type;
+    uint8_t type;
     uint16_t ptr;
     int32_t min, max;
 } prow_t;
@@ -174,7 +177,7 @@ static int ev_push(uint8_t kind, uint8_t idx, uint8_t val, uint64_t t_us)
 
 static ev_t ev_pop(void) { return sil_ev_pop(s_heap, &S.ev_n); }
 
-/* ---- ELF: firmware image and the PARAMS table ---------------------------------------------- */
+/* ---- ELF: firmware image and the parameter groups ---------------------------------------------- */
 static const char *elf_path(void)
 {
     if (g_elf_path[0] != '\0') {
@@ -191,7 +194,7 @@ void sil_avr_set_elf(const char *path)
     g_param_n = -1;
 }
 
-static uint32_t find_params_symbol(const char *path, uint32_t *size)
+static uint32_t find_groups_symbol(const char *path, uint32_t *size)
 {
     uint32_t addr = 0;
     *size = 0;
@@ -217,7 +220,7 @@ static uint32_t find_params_symbol(const char *path, uint32_t *size)
                 continue;
             }
             const char *nm = elf_strptr(e, sh.sh_link, sym.st_name);
-            if (nm != NULL && (strcmp(nm, "PARAMS") == 0 || strncmp(nm, "PARAMS.", 7) == 0) &&
+            if (nm != NULL && (strcmp(nm, "PARAM_GROUPS") == 0 || strncmp(nm, "PARAM_GROUPS.", 13) == 0) &&
                 GELF_ST_TYPE(sym.st_info) == STT_OBJECT) {
                 addr = (uint32_t)sym.st_value;
                 *size = (uint32_t)sym.st_size;
@@ -229,6 +232,64 @@ static uint32_t find_params_symbol(const char *path, uint32_t *size)
     }
     close(fd);
     return addr;
+}
+
+static uint16_t flash_u16(uint32_t a) { return (uint16_t)(g_fw.flash[a] | (g_fw.flash[a + 1u] << 8)); }
+
+static int32_t flash_i32(uint32_t a)
+{
+    return (int32_t)((uint32_t)g_fw.flash[a] | (uint32_t)g_fw.flash[a + 1u] << 8 | (uint32_t)g_fw.flash[a + 2u] << 16 |
+                     (uint32_t)g_fw.flash[a + 3u] << 24);
+}
+
+static int in_flash(uint32_t addr, uint32_t len)
+{
+    return addr >= g_fw.flashbase && addr + len <= g_fw.flashbase + g_fw.flashsize;
+}
+
+/* The rows of every group at addr (size bytes of group pointers), at g_params[index]: the row count,
+ * or -1 when the groups are not there or their indices are not 0..n-1 each once. */
+static int read_param_groups(uint32_t addr, uint32_t size)
+{
+    if (addr == 0u || size == 0u || size % 2u != 0u || !in_flash(addr, size)) {
+        return -1;
+    }
+    uint8_t seen[PARAMS_MAX];
+    memset(seen, 0, sizeof seen);
+    uint32_t n = 0;
+    for (uint32_t g = 0; g < size / 2u; g++) {
+        uint32_t grp = flash_u16(addr - g_fw.flashbase + 2u * g);
+        if (!in_flash(grp, PARAM_GROUP_BYTES)) {
+            return -1;
+        }
+        uint32_t rows = flash_u16(grp - g_fw.flashbase);
+        uint32_t count = g_fw.flash[grp - g_fw.flashbase + 2u];
+        if (!in_flash(rows, count * PARAM_ROW_BYTES)) {
+            return -1;
+        }
+        for (uint32_t k = 0; k < count; k++) {
+            uint32_t a = rows - g_fw.flashbase + k * PARAM_ROW_BYTES;
+            uint8_t index = g_fw.flash[a + 17u];
+            if (index >= PARAMS_MAX || seen[index]) {
+                return -1;
+            }
+            seen[index] = 1;
+            prow_t *r = &g_params[index];
+            memcpy(r->name, &g_fw.flash[a], 17);
+            r->name[16] = '\0';
+            r->type = g_fw.flash[a + 18u];
+            r->ptr = flash_u16(a + 19u);
+            r->min = flash_i32(a + 21u);
+            r->max = flash_i32(a + 25u);
+            n++;
+        }
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        if (!seen[i]) {
+            return -1; /* a gap */
+        }
+    }
+    return (int)n;
 }
 
 static int load_elf(void)
@@ -260,23 +321,9 @@ static int load_elf(void)
         fprintf(stderr, "avr_sil: cannot read ELF '%s'\n", path);
         return -1;
     }
-    g_param_n = -1;
     uint32_t size = 0;
-    uint32_t addr = find_params_symbol(path, &size);
-    if (addr != 0u && size % PARAM_ROW_BYTES == 0u && size / PARAM_ROW_BYTES <= PARAMS_MAX &&
-        addr + size <= g_fw.flashbase + g_fw.flashsize) {
-        const uint8_t *p = g_fw.flash + (addr - g_fw.flashbase);
-        uint32_t n = size / PARAM_ROW_BYTES;
-        for (uint32_t i = 0; i < n; i++, p += PARAM_ROW_BYTES) {
-            prow_t *r = &g_params[i];
-            memcpy(r->name, p, 17);
-            r->type = (int16_t)(p[17] | (p[18] << 8));
-            r->ptr = (uint16_t)(p[19] | (p[20] << 8));
-            r->min = (int32_t)((uint32_t)p[21] | (uint32_t)p[22] << 8 | (uint32_t)p[23] << 16 | (uint32_t)p[24] << 24);
-            r->max = (int32_t)((uint32_t)p[25] | (uint32_t)p[26] << 8 | (uint32_t)p[27] << 16 | (uint32_t)p[28] << 24);
-        }
-        g_param_n = (int)n;
-    }
+    uint32_t groups = find_groups_symbol(path, &size);
+    g_param_n = read_param_groups(groups, size);
     g_fw_loaded = 1;
     return 0;
 }

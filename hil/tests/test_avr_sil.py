@@ -72,17 +72,25 @@ def test_avr_boot_telemetry_and_neutral_outputs_match_native():
         assert fw.core_state == 0 and fw.resets == 0, f"AVR core state {fw.core_state}, {fw.resets} resets"
 
 
+def _param_rows() -> list[dict]:
+    """The parameter rows as tools/gen_param_doc.py reads them from the sources."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("gen_param_doc", REPO / "tools" / "gen_param_doc.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.rows()
+
+
 def test_avr_param_table_and_eeprom_record_match_native():
-    """The PARAMS table found in the ELF drives sil_param_*; the record sil_param_save() writes is
+    """The parameter groups found in the ELF drive sil_param_*; the record sil_param_save() writes is
     byte-identical to the native firmware's (lib/storage) and to the AVR firmware's own
     (MAVLink PARAM_SET + PREFLIGHT_STORAGE), and the firmware loads it at the next boot."""
     hdr = (REPO / "firmware/lib/params/params.h").read_text()
     src = (REPO / "firmware/lib/params/params.c").read_text()
-    main = (REPO / "firmware/src/main.c").read_text()
     assert re.search(r"#define PARAMS_EEPROM_ADDR 0x0200u", hdr), "PARAMS_EEPROM_ADDR moved: update hil/sil/sil_eeprom_map.h"
     assert re.search(r"#define PARAMS_MAGIC 0xA61Du", src), "PARAMS_MAGIC changed: update avr_sil.c"
-    block = main[main.index("PARAMS[] = {"):main.index("#define PARAM_COUNT")]
-    names_main = re.findall(r'\{"([A-Z0-9_]+)", PARAM_', block)
+    names_main = [r["name"] for r in _param_rows()]  # the groups main.c lists, in index order
     rec_len = 4 + 4 * len(names_main) + 2
     changes = {"SYSID_THISMAV": 7, "LINK_TIMEOUT_MS": 1234, "ENC_NM_PER_CNT": 2_000_000, "AVOID_STOP_MM": 350}
     with Firmware(backend="avr") as avr, Firmware() as nat:

@@ -4,37 +4,6 @@
 
 #include "units.h"
 
-/* ---- defaults ------------------------------------------------------------ */
-const behaviour_params_t BEHAVIOUR_PARAMS_DEFAULT = {
-    .link_timeout_ms = 500u,
-    .host_timeout_ms = 500u,
-    .manual_timeout_ms = 300u,
-    .max_speed_mm_s = 1000,
-    .max_steer_cdeg = 3000,
-    .avoid_stop_mm = 300u,
-    .avoid_cone_cdeg = 3000,
-    .avoid_moving_mm_s = 20,
-    .avoid_stop_ms = 200u,
-    .avoid_backoff_mm = 50u,
-    .avoid_backoff_speed_mm_s = 100,
-    .avoid_rear_clear_mm = 150u,
-    .avoid_wait_ms = 1000u,
-    .wall_r0_mm = 100u,
-    .wall_speed_mm_s = 300,
-    .wall_dt_ms = 100u,
-    .wall_imax_steps = 10u,
-    .wall_imin_steps = 50u,
-    .wall_deadband = 100u,
-    .wall_gain_q4 = 32u,
-    .wall_turn_steer_cdeg = 2000,
-    .wall_tie_dir = -1,
-    .wall_canyon_ms = 1500u,
-    .goal_speed_mm_s = 400,
-    .goal_min_speed_mm_s = 80,
-    .goal_slow_mm = 1000u,
-    .goal_tol_mm = 100u,
-};
-
 /* ---- integer trigonometry --------------------------------------------- */
 /* cos(5 deg * k) in Q14, k = 0..18 */
 static const UNITS_ROM int16_t COS5_Q14[19] = {16384, 16322, 16135, 15826, 15396, 14849, 14189, 13421, 12551, 11585,
@@ -86,8 +55,8 @@ int16_t behaviour_atan2_cdeg(int32_t y, int32_t x)
     if (x == 0 && y == 0) {
         return 0;
     }
-    uint32_t ax = x < 0 ? (uint32_t)0 - (uint32_t)x : (uint32_t)x;
-    uint32_t ay = y < 0 ? (uint32_t)0 - (uint32_t)y : (uint32_t)y;
+    uint32_t ax = units_abs_u32(x);
+    uint32_t ay = units_abs_u32(y);
     while ((ax | ay) > 0x7FFFFUL) { /* keep the Q12 ratio inside 32 bits */
         ax >>= 1;
         ay >>= 1;
@@ -135,8 +104,8 @@ static uint32_t isqrt32(uint32_t v)
 
 static uint32_t hypot_mm(int32_t dx, int32_t dy)
 {
-    uint32_t ax = dx < 0 ? (uint32_t)0 - (uint32_t)dx : (uint32_t)dx;
-    uint32_t ay = dy < 0 ? (uint32_t)0 - (uint32_t)dy : (uint32_t)dy;
+    uint32_t ax = units_abs_u32(dx);
+    uint32_t ay = units_abs_u32(dy);
     uint8_t shift = 0u;
     while ((ax | ay) > 32767UL) {
         ax >>= 1;
@@ -227,13 +196,13 @@ void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ri
 
 void behaviour_set_params(const behaviour_params_t *params)
 {
-    b.p = params != 0 ? *params : BEHAVIOUR_PARAMS_DEFAULT;
+    b.p = *params;
     const sonar_ring_cfg_t *ring = b.ring;
     for (uint8_t i = 0; i < b.n; i++) {
         int16_t br = (int16_t)behaviour_wrap_cdeg(ring->sensor[i].bearing_cdeg);
         int16_t c = behaviour_cos_q14(br);
         b.cos_milli[i] = c > 0 ? (uint16_t)(((int32_t)c * 1000L + 8192L) >> 14) : 0u;
-        int16_t ab = br < 0 ? (int16_t)-br : br;
+        int16_t ab = (int16_t)units_abs_u32(br);
         uint8_t cls = 0u;
         if (ab < 1500) {
             cls |= CLS_AXIS;
@@ -623,7 +592,7 @@ static bool layer_avoid(const behaviour_in_t *in, bool lower_has, const proposal
         }
     }
     bool forward = (lower_has && lower->speed_mm_s > 0) || in->speed_mm_s > b.p.avoid_moving_mm_s;
-    int16_t v = in->speed_mm_s < 0 ? (int16_t)-in->speed_mm_s : in->speed_mm_s;
+    int16_t v = (int16_t)units_abs_u32(in->speed_mm_s);
     uint32_t in_state_ms = in->now_ms - b.av_t_ms;
 
     if (b.av_state == AV_WAIT && in_state_ms >= b.p.avoid_wait_ms) {

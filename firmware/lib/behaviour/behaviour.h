@@ -21,6 +21,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "params.h"
 #include "sonar_ring.h"
 
 #ifdef __cplusplus
@@ -72,46 +73,51 @@ typedef enum {
 #define BHV_MODE_GOAL_SEEK 2u
 #define BHV_MODE_AVOID 4u /* passive motion safety on (link's default); off only for tests/bench work */
 
-/* Tunables. Defaults in BEHAVIOUR_PARAMS_DEFAULT. */
+/* Tunables: the PARAM_* rows, ranges and defaults in behaviour_params.c. */
 typedef struct {
     /* general */
-    uint16_t link_timeout_ms;        /* 500: link lost when the newest heartbeat/setpoint/manual is older */
-    uint16_t host_timeout_ms;        /* 500: host setpoint older than this is ignored */
-    uint16_t manual_timeout_ms;      /* 300: manual override older than this is ignored */
-    int16_t max_speed_mm_s;          /* 1000: |speed| limit applied to every layer */
-    int16_t max_steer_cdeg;          /* 3000: |steer| limit applied to every layer */
+    uint16_t link_timeout_ms;        /* link lost when the newest heartbeat/setpoint/manual is older */
+    uint16_t host_timeout_ms;        /* host setpoint older than this is ignored */
+    uint16_t manual_timeout_ms;      /* manual override older than this is ignored */
+    int16_t max_speed_mm_s;          /* |speed| limit applied to every layer */
+    int16_t max_steer_cdeg;          /* |steer| limit applied to every layer */
     /* avoid obstacle (passive motion safety, ref 001) */
-    uint16_t avoid_stop_mm;          /* 300: obstacle closer than this in the front cone stops the robot */
-    int16_t avoid_cone_cdeg;         /* 3000: front cone half angle (S11, S0, S1 on the 12-ring) */
-    int16_t avoid_moving_mm_s;       /* 20: measured speed above which the robot counts as moving forward */
-    uint16_t avoid_stop_ms;          /* 200: minimum standstill before backing off */
-    uint16_t avoid_backoff_mm;       /* 50: reverse distance (odometry: integrated measured speed) */
-    int16_t avoid_backoff_speed_mm_s;/* 100: reverse speed (magnitude) */
-    uint16_t avoid_rear_clear_mm;    /* 150: back-off ends early if the rear cone sees closer than this */
-    uint16_t avoid_wait_ms;          /* 1000: standstill after backing off, then release */
+    uint16_t avoid_stop_mm;          /* obstacle closer than this in the front cone stops the robot */
+    int16_t avoid_cone_cdeg;         /* front cone half angle (S11, S0, S1 on the 12-ring) */
+    int16_t avoid_moving_mm_s;       /* measured speed above which the robot counts as moving forward */
+    uint16_t avoid_stop_ms;          /* minimum standstill before backing off */
+    uint16_t avoid_backoff_mm;       /* reverse distance (odometry: integrated measured speed) */
+    int16_t avoid_backoff_speed_mm_s;/* reverse speed (magnitude) */
+    uint16_t avoid_rear_clear_mm;    /* back-off ends early if the rear cone sees closer than this */
+    uint16_t avoid_wait_ms;          /* standstill after backing off, then release */
     /* follow wall (ref 002) */
-    uint16_t wall_r0_mm;             /* 100: margin R0 added to every range (keeps 1/R finite) */
-    int16_t wall_speed_mm_s;         /* 300: vmax of the layer */
-    uint16_t wall_dt_ms;             /* 100: sampling period dt (one sonar ring pass) */
-    uint8_t wall_imax_steps;         /* 10: Imax horizon in steps of vmax*dt (300 mm): stop closer */
-    uint8_t wall_imin_steps;         /* 50: Imin horizon in steps of vmax*dt (1500 mm): ignore farther */
-    uint16_t wall_deadband;          /* 100: |l - r| below this (1/km) is "balanced": no correction */
-    uint8_t wall_gain_q4;            /* 32: proportional steer, cdeg per (1/km) of l - r, Q4 (32 = 2.0) */
-    int16_t wall_turn_steer_cdeg;    /* 2000: steer used when the front is blocked (turn-away choice) */
-    int8_t wall_tie_dir;             /* -1: turn right (+1 left) when blocked and l == r */
-    uint16_t wall_canyon_ms;         /* 1500: canyon timer T; 0 disables the timers */
+    uint16_t wall_r0_mm;             /* margin R0 added to every range (keeps 1/R finite) */
+    int16_t wall_speed_mm_s;         /* vmax of the layer */
+    uint16_t wall_dt_ms;             /* sampling period dt (one sonar ring pass) */
+    uint8_t wall_imax_steps;         /* Imax horizon in steps of vmax*dt: stop closer */
+    uint8_t wall_imin_steps;         /* Imin horizon in steps of vmax*dt: ignore farther */
+    uint16_t wall_deadband;          /* |l - r| below this (1/km) is "balanced": no correction */
+    uint8_t wall_gain_q4;            /* proportional steer, cdeg per (1/km) of l - r, Q4 (32 = 2.0) */
+    int16_t wall_turn_steer_cdeg;    /* steer used when the front is blocked (turn-away choice) */
+    int8_t wall_tie_dir;             /* blocked and l == r: -1 turns right, +1 left */
+    uint16_t wall_canyon_ms;         /* canyon timer T; 0 disables the timers */
     /* move to goal */
-    int16_t goal_speed_mm_s;         /* 400: cruise speed */
-    int16_t goal_min_speed_mm_s;     /* 80: crawl speed near the goal or while turning toward it */
-    uint16_t goal_slow_mm;           /* 1000: slow down linearly inside this distance */
-    uint16_t goal_tol_mm;            /* 100: GOAL_REACHED inside this distance */
+    int16_t goal_speed_mm_s;         /* cruise speed */
+    int16_t goal_min_speed_mm_s;     /* crawl speed near the goal or while turning toward it */
+    uint16_t goal_slow_mm;           /* slow down linearly inside this distance */
+    uint16_t goal_tol_mm;            /* GOAL_REACHED inside this distance */
 } behaviour_params_t;
 
-extern const behaviour_params_t BEHAVIOUR_PARAMS_DEFAULT;
+/* The parameter variables (behaviour_params.c): PARAM_SET changes them, the layers take them
+ * with behaviour_set_params(). behaviour_boot_modes: the BHV_MODE_* enabled at boot (BHV_MODES). */
+extern behaviour_params_t behaviour_params;
+extern uint8_t behaviour_boot_modes;
+extern const PARAMS_ROM param_group_t BEHAVIOUR_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
 
-/* Everything the layers look at, filled by main once per tick. A *_valid
- * flag false means "never received". Times are hal_time_ms() values. */
-typedef struct {
+/* Everything the layers look at, filled once per tick by the modules that own the fields
+ * (link_behaviour_inputs, odom_behaviour_inputs, the sonar frame task) and main (faults, time).
+ * A *_valid flag false means "never received". Times are hal_time_ms() values. */
+typedef struct behaviour_in_s {
     uint32_t now_ms;
     sonar_frame_t sonar;            /* latest complete ring (sonar_ring_snapshot) */
     /* host link */
@@ -152,14 +158,14 @@ typedef struct {
     uint8_t failsafe_flags;         /* BHV_FS_* */
 } behaviour_out_t;
 
-/* Reset all layer state. params NULL -> defaults (copied). ring gives the
+/* Reset all layer state; params are copied (main: &behaviour_params). ring gives the
  * sensor bearings (kept by pointer); NULL = no sonar (avoid and follow-wall
  * abstain). Per-sensor cos/sin are precomputed here from integer tables. */
 void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ring);
 
 /* New parameter values (PARAM_SET at run time): the layers use them from the next tick; what is
  * derived from them (sensor classes, wall-follow thresholds) is recomputed, while the state (latches,
- * timers, the active layer) is kept. NULL: the defaults. */
+ * timers, the active layer) is kept. */
 void behaviour_set_params(const behaviour_params_t *params);
 
 /* One 50 Hz tick: evaluate the layers on *in, arbitrate, write *out. */

@@ -50,14 +50,8 @@ static calib_status_t s_last_load;
 
 /* ---- lookup --------------------------------------------------------------- */
 
-static uint16_t dist_u16(uint16_t a, uint16_t b) { return a > b ? (uint16_t)(a - b) : (uint16_t)(b - a); }
-static int32_t abs32(int32_t v) { return v < 0 ? -v : v; }
-
-/* Rounded num / den, den > 0, half away from zero. */
-static int32_t div_round(int32_t num, int32_t den)
-{
-    return num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den);
-}
+/* |a - b| */
+static uint16_t dist_u16(uint16_t a, uint16_t b) { return (uint16_t)units_abs_u32((int32_t)a - (int32_t)b); }
 
 /* True if the pos side lies above neutral (decided by its last point). */
 static bool pos_above(const calib_table_t *t)
@@ -76,7 +70,7 @@ static int32_t side_value(const calib_side_t *s, uint16_t neutral, uint16_t d)
         if (d < d1) {
             int32_t v0 = s->pt[i].value;
             int32_t dv = (int32_t)s->pt[i + 1u].value - v0;
-            return v0 + div_round(dv * (int32_t)(d - d0), (int32_t)(d1 - d0));
+            return v0 + units_div_round_i32(dv * (int32_t)(d - d0), (int32_t)(d1 - d0));
         }
     }
     return s->pt[s->n - 1u].value; /* saturation */
@@ -101,25 +95,24 @@ uint16_t calib_table_pwm(const calib_table_t *t, int32_t value)
         return t->neutral_pwm;
     }
     const calib_side_t *s = value > 0 ? &t->pos : &t->neg;
-    /* |value| as unsigned: defined for INT32_MIN too (2^31), where -value would overflow */
-    uint32_t mag = value < 0 ? 0u - (uint32_t)value : (uint32_t)value;
+    uint32_t mag = units_abs_u32(value); /* defined for INT32_MIN too */
     if (s->n == 0u) {
         s = &t->pos; /* sign-magnitude: the output stage sets the direction */
         if (s->n == 0u) {
             return t->neutral_pwm;
         }
     }
-    if (mag < (uint32_t)abs32(s->pt[0].value)) {
+    if (mag < units_abs_u32(s->pt[0].value)) {
         return t->neutral_pwm; /* slower than the actuator can go: stop */
     }
     for (uint8_t i = 0; i + 1u < s->n; i++) {
-        int32_t m0 = abs32(s->pt[i].value);
-        int32_t m1 = abs32(s->pt[i + 1u].value);
+        int32_t m0 = (int32_t)units_abs_u32(s->pt[i].value);
+        int32_t m1 = (int32_t)units_abs_u32(s->pt[i + 1u].value);
         if (mag < (uint32_t)m1) {
             /* m0 <= mag < m1 <= 2^15 and |dp| < 2^16: the product stays below 2^31 */
             int32_t p0 = s->pt[i].pwm;
             int32_t dp = (int32_t)s->pt[i + 1u].pwm - p0;
-            return (uint16_t)(p0 + div_round(dp * ((int32_t)mag - m0), m1 - m0));
+            return (uint16_t)(p0 + units_div_round_i32(dp * ((int32_t)mag - m0), m1 - m0));
         }
     }
     return s->pt[s->n - 1u].pwm; /* saturation */
@@ -154,7 +147,7 @@ static calib_status_t check_side(const calib_side_t *s, uint16_t neutral, int8_t
         if (p->pwm > CALIB_PWM_MAX) {
             return CALIB_E_PWM_RANGE;
         }
-        if (abs32(p->value) > limit) {
+        if ((int32_t)units_abs_u32(p->value) > limit) {
             return CALIB_E_VALUE_RANGE;
         }
         if ((sign > 0 && p->value < 0) || (sign < 0 && p->value > 0)) {
@@ -168,7 +161,7 @@ static calib_status_t check_side(const calib_side_t *s, uint16_t neutral, int8_t
             return CALIB_E_WRONG_SIDE;
         }
         int32_t d = dist_u16(p->pwm, neutral);
-        int32_t m = abs32(p->value);
+        int32_t m = (int32_t)units_abs_u32(p->value);
         if (d <= prev_d || m <= prev_m) {
             return CALIB_E_NON_MONOTONE;
         }
@@ -268,7 +261,7 @@ void calib_use_default(uint8_t id)
 
 static uint16_t get_u16(const uint8_t *b) { return (uint16_t)(b[0] | ((uint16_t)b[1] << 8)); }
 
-/* Not inlined: boot and load only (~90 B less flash on the AVR with LTO). */
+/* Not inlined: boot and load only. */
 __attribute__((noinline)) static void decode_table(const uint8_t *b, calib_table_t *t)
 {
     t->neutral_pwm = get_u16(b);

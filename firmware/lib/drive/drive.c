@@ -2,6 +2,7 @@
 
 #include "calib.h"
 #include "hal.h"
+#include "units.h"
 
 static drive_cfg_t s_cfg;
 static drive_output_t s_out;
@@ -45,7 +46,7 @@ static int8_t sign16(int16_t v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
 static uint8_t duty_from(uint8_t table, int16_t speed_mm_s)
 {
-    int32_t mag = speed_mm_s < 0 ? -(int32_t)speed_mm_s : speed_mm_s;
+    int32_t mag = (int32_t)units_abs_u32(speed_mm_s);
     uint16_t b = calib_pwm_from_value(table, mag);
     return (uint8_t)(b > 255u ? 255u : b);
 }
@@ -55,7 +56,7 @@ void drive_apply(int16_t steer_cdeg, int16_t speed_mm_s)
     s_out.direction = sign16(speed_mm_s);
     if (s_cfg.kind == DRIVE_ACKERMANN) {
         uint16_t steer_b = calib_pwm_from_value(CALIB_STEER, steer_cdeg);
-        int32_t mag = speed_mm_s < 0 ? -(int32_t)speed_mm_s : speed_mm_s;
+        int32_t mag = (int32_t)units_abs_u32(speed_mm_s);
         uint16_t speed_b = calib_pwm_from_value(CALIB_SPEED, mag);
         s_out.steer_us = drive_servo_us_from_byte(steer_b);
         s_out.throttle_us = drive_esc_us_from_byte(speed_b, s_out.direction);
@@ -69,7 +70,7 @@ void drive_apply(int16_t steer_cdeg, int16_t speed_mm_s)
     int32_t phi3_q12 = (((phi_q12 * phi_q12) >> 12) * phi_q12) >> 12;
     int32_t tan_q12 = phi_q12 + ((phi3_q12 * 21845L) >> 16);        /* tan x ~ x + x^3/3, < 1.5 % to 30 deg */
     int32_t half = ((int32_t)speed_mm_s * tan_q12) >> 13;           /* v tan(phi) / 2 */
-    int32_t mag = speed_mm_s < 0 ? -(int32_t)speed_mm_s : speed_mm_s;
+    int32_t mag = (int32_t)units_abs_u32(speed_mm_s);
     if (mag < (int32_t)s_cfg.spin_below_mm_s) {
         /* Spin on the spot: steer / 4500 cdeg * spin_mm_s; 1/4500 ~ 233 / 2^20. */
         half = ((int32_t)steer_cdeg * (int32_t)s_cfg.spin_mm_s * 233L) >> 20;

@@ -22,6 +22,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "params.h"
+
 struct calib_table_s; /* calib.h */
 
 typedef enum { DRIVE_ACKERMANN = 0, DRIVE_DIFFERENTIAL = 1 } drive_kind_t;
@@ -43,6 +45,10 @@ typedef struct {
     uint8_t right_duty;
     int8_t direction;     /* sign of the commanded speed, for Hall encoder hints */
 } drive_output_t;
+
+/* The parameters (drive_params.c: DRIVE_KIND, TRACK_MM; the robot's build, taken at boot). */
+extern drive_cfg_t drive_params;
+extern const PARAMS_ROM param_group_t DRIVE_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
 
 void drive_init(const drive_cfg_t *cfg);
 /* Physical command (positive steer = left, positive speed = forward). */

@@ -8,6 +8,7 @@
 
 #include "encoder_isr.h"
 #include "hal.h"
+#include "units.h"
 
 _Static_assert(sizeof(encoder_isr_t) == ENCODER_ISR_SIZE, "AVR vector layout");
 _Static_assert(offsetof(encoder_isr_t, back) == ENCODER_ISR_OFS_BACK, "AVR vector layout");
@@ -264,11 +265,10 @@ void encoder_set_count(uint8_t idx, int32_t count)
 /* ---- configuration ---------------------------------------------------- */
 
 /* (a * b + c / 2) / c in 64 bits (c > 0), truncated to 32 bits: the rare wide case of the speed
- * estimates, and configuration. Not inlined: on the AVR each inlined copy of the 64-bit arithmetic
- * cost 0.2-0.3 KB of flash in the control tick. */
+ * estimates, and configuration. Not inlined: its 64-bit multiply stays out of the control tick's code. */
 __attribute__((noinline)) static uint32_t muldiv_round(uint32_t a, uint32_t b, uint32_t c)
 {
-    return (uint32_t)(((uint64_t)a * b + c / 2u) / c);
+    return (uint32_t)units_div_round_u64((uint64_t)a * b, c);
 }
 
 uint32_t encoder_counts_per_wheel_rev(uint16_t lines_per_motor_rev, uint8_t mode,
@@ -279,16 +279,14 @@ uint32_t encoder_counts_per_wheel_rev(uint16_t lines_per_motor_rev, uint8_t mode
     }
     uint64_t c = (uint64_t)lines_per_motor_rev * (mode == ENCODER_MODE_QUAD_X4 ? 4u : 1u);
     c *= gear_num;
-    return (uint32_t)((c + gear_den / 2u) / gear_den);
+    return (uint32_t)units_div_round_u64(c, gear_den);
 }
 
 /* pi * D / counts, with D in um -> nm: D * 1000 * pi / counts, rounded; 0 beyond 32 bits.
  * pi * 1e9 = 3141592654 (init time, 64-bit is fine here; not inlined, see muldiv_round). */
 __attribute__((noinline)) static uint32_t travel_from_wheel_nm(uint32_t diameter_um, uint32_t counts)
 {
-    uint64_t num = (uint64_t)diameter_um * 3141592654ull;
-    uint64_t den = (uint64_t)counts * 1000000ull;
-    uint64_t q = (num + den / 2u) / den;
+    uint64_t q = units_div_round_u64((uint64_t)diameter_um * 3141592654ull, (uint64_t)counts * 1000000ull);
     return q > 0xFFFFFFFFull ? 0u : (uint32_t)q;
 }
 
@@ -358,16 +356,13 @@ uint32_t encoder_travel_per_count_nm(uint8_t idx)
 
 /* ---- loop side -------------------------------------------------------- */
 
-/* |v| as unsigned: defined for INT32_MIN too (2^31), where -v would overflow */
-static uint32_t uabs32(int32_t v) { return v < 0 ? 0u - (uint32_t)v : (uint32_t)v; }
-
 /* travel_um() beyond 16 x 16 bit operands (|dc| >= 2^15 or >= 256 mm per count), in 32-bit
  * halves: x = dc * um_q8 + resid = hi * 2^32 + lo in two's complement, and x >> 8 (floor) =
  * hi * 2^24 + lo / 2^8, within int32 exactly when -128 <= hi <= 127, else clamped. Not inlined:
- * on the AVR the 64-bit arithmetic inside the control tick cost ~0.6 KB of flash. */
+ * its 64-bit arithmetic stays out of the control tick's common path. */
 __attribute__((noinline)) static int32_t travel_um_wide(enc_loop_t *w, int32_t dc)
 {
-    uint64_t p = (uint64_t)uabs32(dc) * w->um_q8_per_count; /* unsigned 32 x 32 -> 64 */
+    uint64_t p = (uint64_t)units_abs_u32(dc) * w->um_q8_per_count; /* unsigned 32 x 32 -> 64 */
     uint32_t lo = (uint32_t)p;
     uint32_t hi = (uint32_t)(p >> 32);
     if (dc < 0) {
@@ -392,7 +387,7 @@ __attribute__((noinline)) static int32_t travel_um_wide(enc_loop_t *w, int32_t d
 static int32_t travel_um(enc_loop_t *w, int32_t dc)
 {
     /* |dc| < 2^15 and um_q8 < 2^16 (< 256 mm per count): the product fits int32 */
-    if (uabs32(dc) < 0x8000u && w->um_q8_per_count < 0x10000u) {
+    if (units_abs_u32(dc) < 0x8000u && w->um_q8_per_count < 0x10000u) {
         /* 16 x 16 -> 32 bit operands: avr-gcc calls its short widening multiply */
         int32_t acc = (int32_t)(int16_t)dc * (int32_t)(uint16_t)w->um_q8_per_count + (int32_t)w->resid_q8;
         w->resid_q8 = (uint8_t)(acc & 0xFF);
@@ -407,7 +402,7 @@ static int32_t travel_um(enc_loop_t *w, int32_t dc)
  * < 65 mm of travel); otherwise a 64-bit division (rare). */
 static int32_t count_speed_mm_s(int32_t d_um, uint32_t recip_q16, int32_t dt_us)
 {
-    uint32_t mag = uabs32(d_um);
+    uint32_t mag = units_abs_u32(d_um);
     uint32_t v;
     if (mag <= 0xFFFFu && recip_q16 <= 0xFFFFu) {
         v = ((uint32_t)(uint16_t)mag * (uint16_t)recip_q16 + 32768u) >> 16; /* 16 x 16 -> 32 */
@@ -427,7 +422,7 @@ static int32_t period_speed_mm_s(uint32_t nm_per_count, uint16_t n, uint32_t spa
         span_us = 1u;
     }
     if (nm_per_count < 0x1000000ul && n < 0x80u) { /* nm * n + span / 2 < 2^32 */
-        return (int32_t)((nm_per_count * n + span_us / 2u) / span_us);
+        return (int32_t)units_div_round_u32(nm_per_count * n, span_us);
     }
     return (int32_t)muldiv_round(nm_per_count, n, span_us);
 }
@@ -453,7 +448,7 @@ static void update_wheel(enc_loop_t *w, uint32_t now_us, int32_t dt_us, uint32_t
 
     /* ---- speed ---- */
     uint8_t flags = (uint8_t)(w->flags & ENCODER_F_ERROR_RATIO);
-    uint32_t adc = uabs32(dc);
+    uint32_t adc = units_abs_u32(dc);
     if (dt_us <= 0) {
         /* Same instant as the last update: keep the previous speed. */
     } else if (adc >= (uint32_t)w->crossover_counts) {
@@ -531,7 +526,7 @@ void encoder_update(uint32_t now_us)
     uint32_t recip_q16 = 0u;
     if (dt_us > 0) {
         /* Shared by all wheels: one division per update, not per wheel. */
-        recip_q16 = (65536000u + (uint32_t)dt_us / 2u) / (uint32_t)dt_us;
+        recip_q16 = units_div_round_u32(65536000u, (uint32_t)dt_us);
         s_prev_update_us = now_us;
     }
     for (uint8_t i = 0; i < ENCODER_MAX; i++) {

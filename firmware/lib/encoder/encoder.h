@@ -45,6 +45,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "params.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -130,6 +132,22 @@ uint32_t encoder_counts_per_wheel_rev(uint16_t lines_per_motor_rev, uint8_t mode
  * leaves the offending wheel unconfigured) if a cfg gives no travel per
  * count. Also records hal_time_us() as the start of the first update interval. */
 bool encoder_init(uint8_t count, const encoder_cfg_t *cfg);
+
+/* The parameters (encoder_params.c, the robot's build): wheels with an encoder (1..4), their
+ * encoder_mode_t, bit i of invert = wheel i counts the other way (mounted mirrored), and the travel
+ * per count of every wheel. */
+typedef struct {
+    uint8_t count;
+    uint8_t mode;
+    uint8_t invert;
+    int32_t nm_per_count;
+} encoder_params_t;
+
+extern encoder_params_t encoder_params;
+extern const PARAMS_ROM param_group_t ENCODER_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
+
+/* encoder_init() of p->count wheels, all of p->mode and p->nm_per_count. */
+bool encoder_init_params(const encoder_params_t *p);
 
 /* ISR hook (hal_encoder_edge_fn) of the sim and STM32 backends. ab = (A << 1) | B
  * after the edge, t_us the edge time. Counts and timestamps into the interrupt

@@ -2,8 +2,6 @@
 
 #include <string.h>
 
-const health_params_t HEALTH_PARAMS_DEFAULT = {500u, 2000u, 3u, 4u};
-
 static struct {
     health_params_t p;
     uint8_t enc_n;
@@ -21,11 +19,11 @@ static struct {
 void health_init(const health_params_t *params, uint8_t enc_count)
 {
     memset(&h, 0, sizeof h);
-    h.p = params != 0 ? *params : HEALTH_PARAMS_DEFAULT;
+    h.p = *params;
     h.enc_n = enc_count > HEALTH_ENC_MAX ? HEALTH_ENC_MAX : enc_count;
 }
 
-void health_set_params(const health_params_t *params) { h.p = params != 0 ? *params : HEALTH_PARAMS_DEFAULT; }
+void health_set_params(const health_params_t *params) { h.p = *params; }
 
 void health_encoders(uint32_t now_ms, bool driving, const uint16_t *count_lo, const uint16_t *edges_lo,
                      uint8_t ratio_faults)

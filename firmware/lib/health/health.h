@@ -30,6 +30,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "params.h"
 #include "sonar_ring.h"
 
 #ifdef __cplusplus
@@ -47,18 +48,20 @@ extern "C" {
 #define HEALTH_ENC_MASK 0x000000FFUL
 #define HEALTH_SONAR_MASK 0xFFFFFF00UL
 
+/* Thresholds: the PARAM_* rows, ranges and defaults in health_params.c. */
 typedef struct {
-    uint16_t enc_stuck_ms;      /* 500: driving without counts this long -> stuck; 0 off (the ref 003
-                                 * car's slowest motion, 435 mm/s, gives a Hall pulse every 31 ms) */
-    uint16_t enc_edges_max;     /* 2000: edges of one wheel in one control tick above this -> error; 0 off */
-    uint8_t sonar_fault_frames; /* 3: consecutive FAULT frames of one sensor -> timeout; 0 off */
-    uint8_t sonar_zero_frames;  /* 4: consecutive frames closer than 20 mm -> zero; 0 off (with the
-                                 * 3-sample median the fault latches ~0.5 s after it starts) */
+    uint16_t enc_stuck_ms;      /* driving without counts this long -> stuck; 0 off */
+    uint16_t enc_edges_max;     /* edges of one wheel in one control tick above this -> error; 0 off */
+    uint8_t sonar_fault_frames; /* consecutive FAULT frames of one sensor -> timeout; 0 off */
+    uint8_t sonar_zero_frames;  /* consecutive frames closer than 20 mm -> zero; 0 off */
 } health_params_t;
 
-extern const health_params_t HEALTH_PARAMS_DEFAULT;
+/* The parameter variables (health_params.c): PARAM_SET changes them, the monitor takes them with
+ * health_set_params(). */
+extern health_params_t health_params;
+extern const PARAMS_ROM param_group_t HEALTH_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
 
-/* Reset all state; params NULL -> defaults (copied). */
+/* Reset all state; params are copied (main: &health_params). */
 void health_init(const health_params_t *params, uint8_t enc_count);
 
 /* New thresholds (PARAM_SET at run time), used from the next check; the counters are kept. */

@@ -2,6 +2,7 @@
 
 #include <string.h>
 
+#include "behaviour.h"
 #include "hal.h"
 #include "params.h"
 #include "signing.h"
@@ -266,15 +267,73 @@ static uint8_t check_bools(const float *p, uint8_t n)
     return 0u;
 }
 
-/* Not inlined (handle() and handle_command() only run in the link task, never in the control tick):
- * inlined into link_feed() they cost ~320 B more flash on the AVR (LTO). */
-__attribute__((noinline)) static void handle_command(const mavlink_message_t *m, uint32_t now_ms)
+/* One function per MAV_CMD: each checks its params (p: param1..3), acts, and returns the
+ * LINK_REFUSAL_* reason, 0 when fine. */
+static uint8_t cmd_estop(const mavlink_command_long_t *c, const float *p)
+{
+    uint8_t reason = check_bools(p, 1u);
+    if (reason == 0u) {
+        s_state.estop = is_one(c->param1);
+    }
+    return reason;
+}
+
+/* param2 (force) is not used: nothing bypasses the failsafe. */
+static uint8_t cmd_arm_disarm(const mavlink_command_long_t *c, const float *p)
+{
+    uint8_t reason = check_bools(p, 1u);
+    if (reason != 0u) {
+        return reason;
+    }
+    if (is_one(c->param1)) {
+        s_state.arm_request = true;
+    } else {
+        s_state.setpoint.valid = false;
+        s_state.goal.active = false;
+    }
+    return 0u;
+}
+
+static uint8_t cmd_set_behaviours(const mavlink_command_long_t *c, const float *p)
+{
+    uint8_t reason = check_bools(p, 3u);
+    if (reason == 0u) {
+        s_state.behaviour_enable = (uint8_t)((is_one(c->param1) ? LINK_ENABLE_FOLLOW_WALL : 0u) |
+                                             (is_one(c->param2) ? LINK_ENABLE_GOAL_SEEK : 0u) |
+                                             (is_one(c->param3) ? LINK_ENABLE_AVOID : 0u));
+    }
+    return reason;
+}
+
+/* param1: 0 read parameters back from EEPROM, 1 write them (boot-time ones such as DRIVE_KIND take
+ * effect at the next boot): answered IN_PROGRESS at once, then ACCEPTED or FAILED when lib/storage has
+ * written and read back both slots (link_storage_done()). Other param1 values: unsupported. */
+static uint8_t cmd_preflight_storage(const mavlink_command_long_t *c, const mavlink_message_t *m, uint8_t *result)
+{
+    if (!is_finite_f(c->param1)) {
+        return LINK_REFUSAL_NOT_FINITE;
+    }
+    if (is_one(c->param1)) {
+        storage_request(STORAGE_PARAMS);
+        s_state.storage_to_sys = m->sysid;
+        s_state.storage_to_comp = m->compid;
+        *result = MAV_RESULT_IN_PROGRESS;
+    } else if (is_zero(c->param1)) {
+        *result = storage_pending(STORAGE_PARAMS) ? MAV_RESULT_TEMPORARILY_REJECTED /* being written */
+                  : params_load() == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
+    } else {
+        *result = MAV_RESULT_UNSUPPORTED;
+        return LINK_REFUSAL_OUT_OF_RANGE;
+    }
+    return 0u;
+}
+
+static void handle_command(const mavlink_message_t *m)
 {
     mavlink_command_long_t c;
     mavlink_msg_command_long_decode(m, &c);
     /* E-stop may be broadcast (stop every robot in the field); everything else is addressed. */
-    bool bcast_ok = c.command == MAV_CMD_AGNAV_ESTOP;
-    if (!addressed(c.target_system, c.target_component, bcast_ok)) {
+    if (!addressed(c.target_system, c.target_component, c.command == MAV_CMD_AGNAV_ESTOP)) {
         if (c.target_system == 0u && (c.target_component == 0u || c.target_component == s_cfg.compid)) {
             count(&s_state.rx_refused);
             send_command_ack(c.command, MAV_RESULT_DENIED, LINK_REFUSAL_BROADCAST, m->sysid, m->compid);
@@ -283,54 +342,19 @@ __attribute__((noinline)) static void handle_command(const mavlink_message_t *m,
     }
     const float p[3] = {c.param1, c.param2, c.param3};
     uint8_t result = MAV_RESULT_ACCEPTED;
-    uint8_t reason = 0u;
+    uint8_t reason;
     switch (c.command) {
     case MAV_CMD_AGNAV_ESTOP:
-        reason = check_bools(p, 1u);
-        if (reason == 0u) {
-            s_state.estop = is_one(c.param1);
-        }
+        reason = cmd_estop(&c, p);
         break;
     case MAV_CMD_COMPONENT_ARM_DISARM:
-        /* param2 (force) is not used: nothing bypasses the failsafe. */
-        reason = check_bools(p, 1u);
-        if (reason != 0u) {
-            break;
-        }
-        if (is_one(c.param1)) {
-            s_state.arm_request = true;
-        } else {
-            s_state.setpoint.valid = false;
-            s_state.goal.active = false;
-        }
+        reason = cmd_arm_disarm(&c, p);
         break;
     case MAV_CMD_AGNAV_SET_BEHAVIOURS:
-        reason = check_bools(p, 3u);
-        if (reason == 0u) {
-            s_state.behaviour_enable = (uint8_t)((is_one(c.param1) ? LINK_ENABLE_FOLLOW_WALL : 0u) |
-                                                 (is_one(c.param2) ? LINK_ENABLE_GOAL_SEEK : 0u) |
-                                                 (is_one(c.param3) ? LINK_ENABLE_AVOID : 0u));
-        }
+        reason = cmd_set_behaviours(&c, p);
         break;
     case MAV_CMD_PREFLIGHT_STORAGE:
-        /* param1: 0 read parameters back from EEPROM, 1 write them (boot-time ones such as
-         * DRIVE_KIND take effect at the next boot): answered IN_PROGRESS at once, then ACCEPTED or
-         * FAILED when lib/storage has written and read back both slots (link_storage_done()).
-         * Other param1 values: unsupported. */
-        if (!is_finite_f(c.param1)) {
-            reason = LINK_REFUSAL_NOT_FINITE;
-        } else if (is_one(c.param1)) {
-            storage_request(STORAGE_PARAMS);
-            s_state.storage_to_sys = m->sysid;
-            s_state.storage_to_comp = m->compid;
-            result = MAV_RESULT_IN_PROGRESS;
-        } else if (is_zero(c.param1)) {
-            result = storage_pending(STORAGE_PARAMS) ? MAV_RESULT_TEMPORARILY_REJECTED /* being written */
-                     : params_load() == PARAMS_OK ? MAV_RESULT_ACCEPTED : MAV_RESULT_FAILED;
-        } else {
-            result = MAV_RESULT_UNSUPPORTED;
-            reason = LINK_REFUSAL_OUT_OF_RANGE;
-        }
+        reason = cmd_preflight_storage(&c, m, &result);
         break;
     default:
         result = MAV_RESULT_UNSUPPORTED;
@@ -343,7 +367,6 @@ __attribute__((noinline)) static void handle_command(const mavlink_message_t *m,
             result = MAV_RESULT_DENIED;
         }
     }
-    (void)now_ms;
     send_command_ack(c.command, result, reason, m->sysid, m->compid);
 }
 
@@ -397,140 +420,219 @@ static void handle_param_set(const mavlink_message_t *m, uint32_t now_ms)
     send_param((uint16_t)idx); /* the current value either way, as the protocol asks */
 }
 
+void link_behaviour_inputs(behaviour_in_t *in)
+{
+    const link_state_t *ls = &s_state;
+    in->host_steer_cdeg = ls->setpoint.steer_cdeg;
+    in->host_speed_mm_s = ls->setpoint.speed_mm_s;
+    if (ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM && ls->setpoint.speed_pwm != 0u && ls->setpoint.speed_mm_s == 0) {
+        in->host_speed_mm_s = 1; /* raw forward (calibration): the avoid layer must see it before the wheels do */
+    }
+    in->host_rx_ms = ls->setpoint.rx_ms;
+    in->host_valid = ls->setpoint.valid;
+    in->heartbeat_rx_ms = ls->host_heartbeat_ms;
+    in->heartbeat_valid = ls->host_seen;
+    in->manual_steer_cdeg = ls->manual.steer_cdeg;
+    in->manual_speed_mm_s = ls->manual.speed_mm_s;
+    in->manual_rx_ms = ls->manual.rx_ms;
+    in->manual_valid = ls->manual.valid;
+    in->estop = ls->estop;
+    in->goal_x_mm = ls->goal.x_mm;
+    in->goal_y_mm = ls->goal.y_mm;
+    in->goal_active = ls->goal.active;
+    in->mode_flags = ls->behaviour_enable;
+}
+
 void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s)
 {
     s_cfg.manual_max_steer_cdeg = max_steer_cdeg;
     s_cfg.manual_max_speed_mm_s = max_speed_mm_s;
 }
 
-/* Not inlined: see handle_command(). */
+/* Only a ground station's: another robot on the same radio net (a fleet) must not keep this one's
+ * link-loss failsafe quiet when its own host is gone. */
+static void handle_heartbeat(const mavlink_message_t *m, uint32_t now_ms)
+{
+    if (m->sysid != s_cfg.sysid && mavlink_msg_heartbeat_get_type(m) == MAV_TYPE_GCS) {
+        s_state.host_heartbeat_ms = now_ms;
+        s_state.host_seen = true;
+    }
+}
+
+/* Any message from the host that commands motion also counts as its heartbeat. */
+static void host_heard(uint32_t now_ms)
+{
+    s_state.host_heartbeat_ms = now_ms;
+    s_state.host_seen = true;
+}
+
+static void handle_drive_setpoint(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_agnav_drive_setpoint_t sp;
+    mavlink_msg_agnav_drive_setpoint_decode(m, &sp);
+    if (!for_robot(sp.target_system, sp.target_component, now_ms)) {
+        return;
+    }
+    bool ok = sp.mode <= AGNAV_DRIVE_RAW_PWM && sp.steer_cdeg >= -SETPOINT_STEER_LIMIT_CDEG &&
+              sp.steer_cdeg <= SETPOINT_STEER_LIMIT_CDEG && sp.speed_mm_s >= -SETPOINT_SPEED_LIMIT_MM_S &&
+              sp.speed_mm_s <= SETPOINT_SPEED_LIMIT_MM_S &&
+              (sp.mode != AGNAV_DRIVE_RAW_PWM || (sp.steer_pwm <= RAW_PWM_LIMIT && sp.speed_pwm <= RAW_PWM_LIMIT));
+    if (!ok) {
+        s_state.setpoint.valid = false;
+        refuse(LINK_TEXT("refused SETPOINT: out of range, stop"), now_ms);
+        return;
+    }
+    s_state.setpoint.steer_cdeg = sp.steer_cdeg;
+    s_state.setpoint.speed_mm_s = sp.speed_mm_s;
+    s_state.setpoint.steer_pwm = sp.steer_pwm;
+    s_state.setpoint.speed_pwm = sp.speed_pwm;
+    s_state.setpoint.mode = sp.mode;
+    s_state.setpoint.seq = sp.seq;
+    s_state.setpoint.rx_ms = now_ms;
+    s_state.setpoint.valid = true;
+    host_heard(now_ms);
+}
+
+static bool rc_released(uint16_t pulse_us) { return pulse_us == 0u || pulse_us == UINT16_MAX; }
+
+static bool rc_valid(uint16_t pulse_us)
+{
+    return rc_released(pulse_us) || (pulse_us >= RC_VALID_MIN_US && pulse_us <= RC_VALID_MAX_US);
+}
+
+static void handle_rc_override(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_rc_channels_override_t rc;
+    mavlink_msg_rc_channels_override_decode(m, &rc);
+    if (!for_robot(rc.target_system, rc.target_component, now_ms)) {
+        return;
+    }
+    if (!rc_valid(rc.chan1_raw) || !rc_valid(rc.chan3_raw)) {
+        s_state.manual.valid = false;
+        refuse(LINK_TEXT("refused RC: pulse not 800..2200 us, stop"), now_ms);
+        return;
+    }
+    /* Channel 1 is roll/steering (right stick right = turn right = negative), channel 3 throttle. */
+    s_state.manual.steer_cdeg = (int16_t)-link_rc_to_range(rc.chan1_raw, s_cfg.manual_max_steer_cdeg);
+    s_state.manual.speed_mm_s = link_rc_to_range(rc.chan3_raw, s_cfg.manual_max_speed_mm_s);
+    s_state.manual.rx_ms = now_ms;
+    s_state.manual.valid = !(rc_released(rc.chan1_raw) && rc_released(rc.chan3_raw));
+    host_heard(now_ms);
+}
+
+static void handle_manual_control(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_manual_control_t mc;
+    mavlink_msg_manual_control_decode(m, &mc);
+    if (!for_robot(mc.target, 0u, now_ms)) {
+        return;
+    }
+    /* x: forward stick -1000..1000; r: yaw stick, positive = clockwise = right.
+     * INT16_MAX marks an axis as unused (MAVLink): it reads as centred. */
+    int16_t x = mc.x == INT16_MAX ? 0 : mc.x;
+    int16_t r = mc.r == INT16_MAX ? 0 : mc.r;
+    if (x < -1000 || x > 1000 || r < -1000 || r > 1000) {
+        s_state.manual.valid = false;
+        refuse(LINK_TEXT("refused MANUAL: axis not +-1000, stop"), now_ms);
+        return;
+    }
+    s_state.manual.speed_mm_s = (int16_t)(((int32_t)x * s_cfg.manual_max_speed_mm_s) / 1000);
+    s_state.manual.steer_cdeg = (int16_t)(-((int32_t)r * s_cfg.manual_max_steer_cdeg) / 1000);
+    s_state.manual.rx_ms = now_ms;
+    s_state.manual.valid = true;
+    host_heard(now_ms);
+}
+
+/* A goal: position only, in the local frame (x and y used: type_mask bits 0, 1 clear), |x|, |y| <=
+ * GOAL_LIMIT_M, which also rules out NaN and +-inf. NED in, REP-103 kept: y_left = -y_east. */
+static void handle_position_target(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_set_position_target_local_ned_t t;
+    mavlink_msg_set_position_target_local_ned_decode(m, &t);
+    if (!for_robot(t.target_system, t.target_component, now_ms)) {
+        return;
+    }
+    if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || FB_MAG(fbits(t.x)) > FB_10000 ||
+        FB_MAG(fbits(t.y)) > FB_10000) {
+        s_state.goal.active = false;
+        refuse(LINK_TEXT("refused GOAL: frame/mask/NaN/10 km, dropped"), now_ms);
+        return;
+    }
+    s_state.goal.x_mm = times_1000(t.x);  /* (int32_t)(t.x * 1000.0f) */
+    s_state.goal.y_mm = -times_1000(t.y); /* (int32_t)(-t.y * 1000.0f) */
+    s_state.goal.active = true;
+}
+
+static void handle_param_request_list(const mavlink_message_t *m)
+{
+    if (addressed(mavlink_msg_param_request_list_get_target_system(m),
+                  mavlink_msg_param_request_list_get_target_component(m), true)) {
+        s_param_next = 0u; /* link_poll() sends the rows, PARAM_SEND_PER_POLL a call */
+    }
+}
+
+static void handle_param_request_read(const mavlink_message_t *m, uint32_t now_ms)
+{
+    mavlink_param_request_read_t r;
+    mavlink_msg_param_request_read_decode(m, &r);
+    if (!addressed(r.target_system, r.target_component, true)) {
+        return;
+    }
+    int16_t idx = r.param_index >= 0 ? r.param_index : params_find(r.param_id);
+    if (idx >= 0 && (uint16_t)idx < params_count()) {
+        send_param((uint16_t)idx);
+    } else {
+        refuse(LINK_TEXT("refused PARAM_READ: unknown parameter"), now_ms);
+    }
+}
+
+/* AGNAV_CALIB_TABLE and AGNAV_CALIB_REQUEST: main's on_calib (the link keeps no copy). */
+static void handle_calib_table(const mavlink_message_t *m)
+{
+    if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_table_get_target_system(m),
+                                         mavlink_msg_agnav_calib_table_get_target_component(m), false)) {
+        s_cfg.on_calib(m);
+    }
+}
+
+static void handle_calib_request(const mavlink_message_t *m)
+{
+    if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_request_get_target_system(m),
+                                         mavlink_msg_agnav_calib_request_get_target_component(m), false)) {
+        s_cfg.on_calib(m);
+    }
+}
+
+/* One handler per message; ids not listed are parsed and ignored. Not inlined into link_feed(): the
+ * handlers run in the link task only, never in the control tick. */
 __attribute__((noinline)) static void handle(const mavlink_message_t *m, uint32_t now_ms)
 {
     s_state.rx_frames++;
     switch (m->msgid) {
     case MAVLINK_MSG_ID_HEARTBEAT:
-        /* only a ground station's: another robot on the same radio net (a fleet) must not keep this
-         * one's link-loss failsafe quiet when its own host is gone */
-        if (m->sysid != s_cfg.sysid && mavlink_msg_heartbeat_get_type(m) == MAV_TYPE_GCS) {
-            s_state.host_heartbeat_ms = now_ms;
-            s_state.host_seen = true;
-        }
+        handle_heartbeat(m, now_ms);
         break;
-    case MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT: {
-        mavlink_agnav_drive_setpoint_t sp;
-        mavlink_msg_agnav_drive_setpoint_decode(m, &sp);
-        if (!for_robot(sp.target_system, sp.target_component, now_ms)) {
-            break;
-        }
-        bool ok = sp.mode <= AGNAV_DRIVE_RAW_PWM && sp.steer_cdeg >= -SETPOINT_STEER_LIMIT_CDEG &&
-                  sp.steer_cdeg <= SETPOINT_STEER_LIMIT_CDEG && sp.speed_mm_s >= -SETPOINT_SPEED_LIMIT_MM_S &&
-                  sp.speed_mm_s <= SETPOINT_SPEED_LIMIT_MM_S &&
-                  (sp.mode != AGNAV_DRIVE_RAW_PWM || (sp.steer_pwm <= RAW_PWM_LIMIT && sp.speed_pwm <= RAW_PWM_LIMIT));
-        if (!ok) {
-            s_state.setpoint.valid = false;
-            refuse(LINK_TEXT("refused SETPOINT: out of range, stop"), now_ms);
-            break;
-        }
-        s_state.setpoint.steer_cdeg = sp.steer_cdeg;
-        s_state.setpoint.speed_mm_s = sp.speed_mm_s;
-        s_state.setpoint.steer_pwm = sp.steer_pwm;
-        s_state.setpoint.speed_pwm = sp.speed_pwm;
-        s_state.setpoint.mode = sp.mode;
-        s_state.setpoint.seq = sp.seq;
-        s_state.setpoint.rx_ms = now_ms;
-        s_state.setpoint.valid = true;
-        s_state.host_heartbeat_ms = now_ms;
-        s_state.host_seen = true;
+    case MAVLINK_MSG_ID_AGNAV_DRIVE_SETPOINT:
+        handle_drive_setpoint(m, now_ms);
         break;
-    }
-    case MAVLINK_MSG_ID_RC_CHANNELS_OVERRIDE: {
-        mavlink_rc_channels_override_t rc;
-        mavlink_msg_rc_channels_override_decode(m, &rc);
-        if (!for_robot(rc.target_system, rc.target_component, now_ms)) {
-            break;
-        }
-        bool rel1 = rc.chan1_raw == 0u || rc.chan1_raw == UINT16_MAX;
-        bool rel3 = rc.chan3_raw == 0u || rc.chan3_raw == UINT16_MAX;
-        if ((!rel1 && (rc.chan1_raw < RC_VALID_MIN_US || rc.chan1_raw > RC_VALID_MAX_US)) ||
-            (!rel3 && (rc.chan3_raw < RC_VALID_MIN_US || rc.chan3_raw > RC_VALID_MAX_US))) {
-            s_state.manual.valid = false;
-            refuse(LINK_TEXT("refused RC: pulse not 800..2200 us, stop"), now_ms);
-            break;
-        }
-        /* Channel 1 is roll/steering (right stick right = turn right = negative), channel 3 throttle. */
-        s_state.manual.steer_cdeg = (int16_t)-link_rc_to_range(rc.chan1_raw, s_cfg.manual_max_steer_cdeg);
-        s_state.manual.speed_mm_s = link_rc_to_range(rc.chan3_raw, s_cfg.manual_max_speed_mm_s);
-        s_state.manual.rx_ms = now_ms;
-        s_state.manual.valid = !(rel1 && rel3);
-        s_state.host_heartbeat_ms = now_ms;
-        s_state.host_seen = true;
+    case MAVLINK_MSG_ID_RC_CHANNELS_OVERRIDE:
+        handle_rc_override(m, now_ms);
         break;
-    }
-    case MAVLINK_MSG_ID_MANUAL_CONTROL: {
-        mavlink_manual_control_t mc;
-        mavlink_msg_manual_control_decode(m, &mc);
-        if (!for_robot(mc.target, 0u, now_ms)) {
-            break;
-        }
-        /* x: forward stick -1000..1000; r: yaw stick, positive = clockwise = right.
-         * INT16_MAX marks an axis as unused (MAVLink): it reads as centred. */
-        int16_t x = mc.x == INT16_MAX ? 0 : mc.x;
-        int16_t r = mc.r == INT16_MAX ? 0 : mc.r;
-        if (x < -1000 || x > 1000 || r < -1000 || r > 1000) {
-            s_state.manual.valid = false;
-            refuse(LINK_TEXT("refused MANUAL: axis not +-1000, stop"), now_ms);
-            break;
-        }
-        s_state.manual.speed_mm_s = (int16_t)(((int32_t)x * s_cfg.manual_max_speed_mm_s) / 1000);
-        s_state.manual.steer_cdeg = (int16_t)(-((int32_t)r * s_cfg.manual_max_steer_cdeg) / 1000);
-        s_state.manual.rx_ms = now_ms;
-        s_state.manual.valid = true;
-        s_state.host_heartbeat_ms = now_ms;
-        s_state.host_seen = true;
+    case MAVLINK_MSG_ID_MANUAL_CONTROL:
+        handle_manual_control(m, now_ms);
         break;
-    }
-    case MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED: {
-        mavlink_set_position_target_local_ned_t t;
-        mavlink_msg_set_position_target_local_ned_decode(m, &t);
-        if (!for_robot(t.target_system, t.target_component, now_ms)) {
-            break;
-        }
-        /* Position only, in the local frame: x and y must be used (type_mask bits 0, 1 clear). */
-        /* |x|, |y| <= GOAL_LIMIT_M, which also rules out NaN and +-inf */
-        if (t.coordinate_frame != MAV_FRAME_LOCAL_NED || (t.type_mask & 0x3u) != 0u || FB_MAG(fbits(t.x)) > FB_10000 ||
-            FB_MAG(fbits(t.y)) > FB_10000) {
-            s_state.goal.active = false;
-            refuse(LINK_TEXT("refused GOAL: frame/mask/NaN/10 km, dropped"), now_ms);
-            break;
-        }
-        s_state.goal.x_mm = times_1000(t.x);  /* (int32_t)(t.x * 1000.0f) */
-        s_state.goal.y_mm = -times_1000(t.y); /* (int32_t)(-t.y * 1000.0f) */
-        s_state.goal.active = true;
+    case MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED:
+        handle_position_target(m, now_ms);
         break;
-    }
     case MAVLINK_MSG_ID_COMMAND_LONG:
-        handle_command(m, now_ms);
+        handle_command(m);
         break;
     case MAVLINK_MSG_ID_PARAM_REQUEST_LIST:
-        if (addressed(mavlink_msg_param_request_list_get_target_system(m),
-                      mavlink_msg_param_request_list_get_target_component(m), true)) {
-            s_param_next = 0u;
-        }
+        handle_param_request_list(m);
         break;
-    case MAVLINK_MSG_ID_PARAM_REQUEST_READ: {
-        mavlink_param_request_read_t r;
-        mavlink_msg_param_request_read_decode(m, &r);
-        if (!addressed(r.target_system, r.target_component, true)) {
-            break;
-        }
-        int16_t idx = r.param_index >= 0 ? r.param_index : params_find(r.param_id);
-        if (idx >= 0 && (uint16_t)idx < params_count()) {
-            send_param((uint16_t)idx);
-        } else {
-            refuse(LINK_TEXT("refused PARAM_READ: unknown parameter"), now_ms);
-        }
+    case MAVLINK_MSG_ID_PARAM_REQUEST_READ:
+        handle_param_request_read(m, now_ms);
         break;
-    }
     case MAVLINK_MSG_ID_SETUP_SIGNING:
         handle_setup_signing(m, now_ms);
         break;
@@ -538,16 +640,10 @@ __attribute__((noinline)) static void handle(const mavlink_message_t *m, uint32_
         handle_param_set(m, now_ms);
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_TABLE:
-        if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_table_get_target_system(m),
-                                             mavlink_msg_agnav_calib_table_get_target_component(m), false)) {
-            s_cfg.on_calib(m);
-        }
+        handle_calib_table(m);
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_REQUEST:
-        if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_request_get_target_system(m),
-                                             mavlink_msg_agnav_calib_request_get_target_component(m), false)) {
-            s_cfg.on_calib(m);
-        }
+        handle_calib_request(m);
         break;
     default:
         break;

@@ -33,6 +33,7 @@
 
 #include <agnav_mavlink.h>
 
+#include "params.h"
 #include "units.h"
 
 typedef struct {
@@ -114,7 +115,17 @@ typedef struct {
     const uint32_t *tick_due_us;
 } link_cfg_t;
 
+/* The parameter (link_params.c: SYSID_THISMAV, taken at boot). */
+extern uint8_t link_param_sysid;
+extern const PARAMS_ROM param_group_t LINK_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
+
 void link_init(const link_cfg_t *cfg);
+
+/* What the host asked for into the behaviour inputs (host setpoint, heartbeat, manual override,
+ * e-stop, goal, enabled layers), every control tick. A raw PWM setpoint driving forward with
+ * speed_mm_s 0 reads as 1 mm/s: the avoid layer sees the motion before the wheels do. */
+struct behaviour_in_s;
+void link_behaviour_inputs(struct behaviour_in_s *in);
 
 /* Full-stick steering and speed of manual control (MAX_STEER_CDEG / MAX_SPEED_MM_S changed at run time). */
 void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s);

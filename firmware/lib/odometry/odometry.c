@@ -6,6 +6,7 @@
 
 #include <stddef.h>
 
+#include "behaviour.h"
 #include "units.h"
 
 /* sin(i * 90deg / 64) in Q15 (32768 = 1.0), i = 0..64. Linear interpolation
@@ -99,7 +100,7 @@ int32_t odom_cos_q15(uint32_t angle_bam)
 
 int32_t odom_tan_q24(int32_t angle_cdeg)
 {
-    int32_t a = angle_cdeg < 0 ? -angle_cdeg : angle_cdeg;
+    int32_t a = (int32_t)units_abs_u32(angle_cdeg);
     if (a > ODOM_STEER_LIMIT_CDEG) {
         a = ODOM_STEER_LIMIT_CDEG;
     }
@@ -159,7 +160,7 @@ static void add_um(int32_t *mm, int16_t *rem_um, int32_t d_um)
  * d * k = d * k_hi * 2^16 + d * k_lo. */
 static int32_t mul_q16(int32_t d, uint32_t k)
 {
-    uint32_t m = d < 0 ? (uint32_t)0 - (uint32_t)d : (uint32_t)d;
+    uint32_t m = units_abs_u32(d);
     uint32_t r;
     if (m <= 0xFFFFu && k < 0x7FFF0000u) {
         /* 16 x 16 -> 32 bit operands: avr-gcc's short widening multiply, not __mulsi3 */
@@ -213,8 +214,8 @@ static void substep(int32_t ds_um, int32_t dth_bam)
 /* Smallest shift so that |a| >> shift and |b| >> shift fit a sub-step. */
 static uint8_t split_shift(int32_t a, int32_t b)
 {
-    uint32_t ma = a < 0 ? (uint32_t)0 - (uint32_t)a : (uint32_t)a;
-    uint32_t mb = b < 0 ? (uint32_t)0 - (uint32_t)b : (uint32_t)b;
+    uint32_t ma = units_abs_u32(a);
+    uint32_t mb = units_abs_u32(b);
     uint32_t m = ma > mb ? ma : mb;
     uint8_t sh = 0u;
     while ((m >> sh) > (uint32_t)MAX_SUBSTEP_UM) {
@@ -251,13 +252,6 @@ static void ack_substep(int32_t ds_um, uint32_t kappa_mag_q16, bool left)
 
 /* ---- public ------------------------------------------------------------- */
 
-/* (n + d / 2) / d, rounded, for a 64-bit n (init time). Not inlined: on the AVR the 64-bit
- * arithmetic written out at each call costs flash. */
-__attribute__((noinline)) static uint32_t div_round_u64(uint64_t n, uint32_t d)
-{
-    return (uint32_t)((n + d / 2u) / d);
-}
-
 bool odom_init(const odom_cfg_t *cfg)
 {
     uint16_t track_mm = ODOM_DEFAULT_TRACK_MM;
@@ -288,10 +282,10 @@ bool odom_init(const odom_cfg_t *cfg)
     s_odom.speed_mm_s = 0;
     s_odom.yaw_rate_cdeg_s = 0;
     /* Init-time 64-bit divisions, rounded (the mm * 1000 divisors fit 32 bits). */
-    s_odom.k_yaw_diff = div_round_u64(BAM_PER_RAD_Q16, (uint32_t)track_mm * 1000u);
-    s_odom.k_yaw_ack = div_round_u64(BAM_PER_RAD_Q16, (uint32_t)wheelbase_mm * 1000u);
-    s_odom.k_rate_diff = (CDEG_PER_RAD_Q16 + track_mm / 2u) / track_mm;
-    s_odom.k_rate_ack = (CDEG_PER_RAD_Q16 + wheelbase_mm / 2u) / wheelbase_mm;
+    s_odom.k_yaw_diff = (uint32_t)units_div_round_u64(BAM_PER_RAD_Q16, (uint32_t)track_mm * 1000u);
+    s_odom.k_yaw_ack = (uint32_t)units_div_round_u64(BAM_PER_RAD_Q16, (uint32_t)wheelbase_mm * 1000u);
+    s_odom.k_rate_diff = units_div_round_u32(CDEG_PER_RAD_Q16, track_mm);
+    s_odom.k_rate_ack = units_div_round_u32(CDEG_PER_RAD_Q16, wheelbase_mm);
     return ok;
 }
 
@@ -348,6 +342,14 @@ void odom_get(odom_pose_t *out)
     out->heading_cdeg = odom_cdeg_from_bam(s_odom.heading_bam);
     out->speed_mm_s = s_odom.speed_mm_s;
     out->yaw_rate_cdeg_s = s_odom.yaw_rate_cdeg_s;
+}
+
+void odom_behaviour_inputs(behaviour_in_t *in)
+{
+    in->x_mm = s_odom.x_mm;
+    in->y_mm = s_odom.y_mm;
+    in->heading_cdeg = (int16_t)odom_cdeg_from_bam(s_odom.heading_bam);
+    in->speed_mm_s = (int16_t)s_odom.speed_mm_s;
 }
 
 uint32_t odom_heading_bam(void)

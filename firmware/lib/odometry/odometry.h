@@ -34,6 +34,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "params.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -61,6 +63,10 @@ typedef struct {
     int32_t yaw_rate_cdeg_s; /* CCW positive */
 } odom_pose_t;
 
+/* The parameter (odometry_params.c: WHEELBASE_MM, taken at boot). */
+extern uint16_t odom_param_wheelbase_mm;
+extern const PARAMS_ROM param_group_t ODOMETRY_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
+
 /* Reset to pose (0, 0, 0) with zero speeds. Zero cfg fields take the
  * defaults; cfg may be NULL for all defaults. Returns false if the model is
  * unknown (defaults are used). */
@@ -84,6 +90,10 @@ void odom_update_ackermann(int32_t rear_um, int32_t steer_cdeg, int32_t rear_mm_
 
 /* Current pose and speeds. */
 void odom_get(odom_pose_t *out);
+
+/* The pose into the behaviour inputs (x_mm, y_mm, heading_cdeg, speed_mm_s), every control tick. */
+struct behaviour_in_s;
+void odom_behaviour_inputs(struct behaviour_in_s *in);
 
 /* Heading as a binary angle, 2^32 per turn (finer than cdeg). */
 uint32_t odom_heading_bam(void);

@@ -5,74 +5,28 @@
 
 #define PARAMS_MAGIC 0xA61Du
 
-static const PARAMS_ROM param_def_t *s_table;
-static uint16_t s_count;
+static const PARAMS_ROM param_group_ref_t *s_groups;
+static uint8_t s_group_count;
+static uint16_t s_count; /* rows of all groups */
 
-void params_init(const PARAMS_ROM param_def_t *table, uint16_t count)
+/* The row of that index, searched across the groups; 0 when there is none. */
+static const PARAMS_ROM param_def_t *row(uint16_t index)
 {
-    s_table = table;
-    s_count = table != 0 ? count : 0u;
-}
-
-uint16_t params_count(void) { return s_count; }
-
-int16_t params_find(const char *name)
-{
-    for (uint16_t i = 0; i < s_count; i++) {
-        const PARAMS_ROM char *n = s_table[i].name;
-        uint8_t k = 0;
-        while (k < PARAMS_NAME_LEN && n[k] == name[k] && name[k] != '\0') {
-            k++;
-        }
-        if (k == PARAMS_NAME_LEN || n[k] == name[k]) {
-            return (int16_t)i;
+    for (uint8_t g = 0; g < s_group_count; g++) {
+        const PARAMS_ROM param_def_t *r = s_groups[g]->rows;
+        for (uint8_t k = s_groups[g]->count; k != 0u; k--, r++) {
+            if (r->index == index) {
+                return r;
+            }
         }
     }
-    return -1;
+    return 0;
 }
 
-bool params_def(uint16_t index, param_def_t *out)
+static void write_value(const PARAMS_ROM param_def_t *r, int32_t value)
 {
-    if (index >= s_count) {
-        return false;
-    }
-    const PARAMS_ROM uint8_t *src = (const PARAMS_ROM uint8_t *)&s_table[index];
-    uint8_t *dst = (uint8_t *)out;
-    for (uint16_t k = 0; k < sizeof *out; k++) {
-        dst[k] = src[k];
-    }
-    return true;
-}
-
-int32_t params_get(uint16_t index)
-{
-    if (index >= s_count) {
-        return 0;
-    }
-    const void *v = s_table[index].value;
-    switch (s_table[index].type) {
-    case PARAM_U8:
-        return *(const uint8_t *)v;
-    case PARAM_U16:
-        return *(const uint16_t *)v;
-    case PARAM_I16:
-        return *(const int16_t *)v;
-    case PARAM_I8:
-        return *(const int8_t *)v;
-    default:
-        return *(const int32_t *)v;
-    }
-}
-
-static uint8_t s_changes; /* stores so far (wraps): params_changes() */
-
-uint8_t params_changes(void) { return s_changes; }
-
-static void store(uint16_t index, int32_t value)
-{
-    s_changes++;
-    void *v = s_table[index].value;
-    switch (s_table[index].type) {
+    void *v = r->value;
+    switch (r->type) {
     case PARAM_U8:
         *(uint8_t *)v = (uint8_t)value;
         break;
@@ -91,15 +45,102 @@ static void store(uint16_t index, int32_t value)
     }
 }
 
+void params_init(const PARAMS_ROM param_group_ref_t *groups, uint8_t group_count)
+{
+    s_groups = groups;
+    s_group_count = groups != 0 ? group_count : 0u;
+    s_count = 0u;
+    for (uint8_t g = 0; g < s_group_count; g++) {
+        const PARAMS_ROM param_def_t *r = s_groups[g]->rows;
+        for (uint8_t k = s_groups[g]->count; k != 0u; k--, r++) {
+            write_value(r, r->def);
+            s_count++;
+        }
+    }
+}
+
+uint16_t params_count(void) { return s_count; }
+
+bool params_check(void)
+{
+    for (uint16_t i = 0; i < s_count; i++) {
+        uint16_t n = 0u;
+        for (uint8_t g = 0; g < s_group_count; g++) {
+            for (uint8_t k = 0; k < s_groups[g]->count; k++) {
+                n = (uint16_t)(n + (s_groups[g]->rows[k].index == i ? 1u : 0u));
+            }
+        }
+        if (n != 1u) {
+            return false; /* a gap (n = 0) or a duplicate */
+        }
+    }
+    return true;
+}
+
+int16_t params_find(const char *name)
+{
+    for (uint8_t g = 0; g < s_group_count; g++) {
+        const PARAMS_ROM param_def_t *r = s_groups[g]->rows;
+        for (uint8_t c = s_groups[g]->count; c != 0u; c--, r++) {
+            const PARAMS_ROM char *n = r->name;
+            uint8_t k = 0;
+            while (k < PARAMS_NAME_LEN && n[k] == name[k] && name[k] != '\0') {
+                k++;
+            }
+            if (k == PARAMS_NAME_LEN || n[k] == name[k]) {
+                return (int16_t)r->index;
+            }
+        }
+    }
+    return -1;
+}
+
+bool params_def(uint16_t index, param_def_t *out)
+{
+    const PARAMS_ROM param_def_t *r = row(index);
+    if (r == 0) {
+        return false;
+    }
+    *out = *r;
+    return true;
+}
+
+int32_t params_get(uint16_t index)
+{
+    const PARAMS_ROM param_def_t *r = row(index);
+    if (r == 0) {
+        return 0;
+    }
+    const void *v = r->value;
+    switch (r->type) {
+    case PARAM_U8:
+        return *(const uint8_t *)v;
+    case PARAM_U16:
+        return *(const uint16_t *)v;
+    case PARAM_I16:
+        return *(const int16_t *)v;
+    case PARAM_I8:
+        return *(const int8_t *)v;
+    default:
+        return *(const int32_t *)v;
+    }
+}
+
+static uint8_t s_changes; /* stores so far (wraps): params_changes() */
+
+uint8_t params_changes(void) { return s_changes; }
+
 params_result_t params_set(uint16_t index, int32_t value)
 {
-    if (index >= s_count) {
+    const PARAMS_ROM param_def_t *r = row(index);
+    if (r == 0) {
         return PARAMS_UNKNOWN;
     }
-    if (value < s_table[index].min || value > s_table[index].max) {
+    if (value < r->min || value > r->max) {
         return PARAMS_OUT_OF_RANGE;
     }
-    store(index, value);
+    s_changes++;
+    write_value(r, value);
     return PARAMS_OK;
 }
 

@@ -23,7 +23,7 @@ static uint8_t s_wr_pos;
 static uint16_t s_wr_crc;
 
 /* Timestamp bytes in EEPROM are little-endian, as every target stores a uint64_t: a copy of
- * its first 6 bytes is the record (no 64-bit shifts, ~0.2 KB of AVR code). */
+ * its first 6 bytes is the record (no 64-bit shifts). */
 _Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "timestamp record = the low 6 bytes in memory");
 
 static bool accept_unsigned(const mavlink_status_t *status, uint32_t msgid)
@@ -100,8 +100,7 @@ static uint8_t load_key(void)
     return st == KEY_ERASED ? SIGNING_OFF : SIGNING_KEY_CORRUPT;
 }
 
-/* Boot only. Not inlined: its 64-bit comparisons written out in agnav_setup() (LTO) cost ~0.2 KB
- * more flash on the AVR. */
+/* Boot only. Not inlined: its 64-bit comparisons stay out of agnav_setup() (LTO). */
 __attribute__((noinline)) static void load_timestamp(void)
 {
     uint64_t best = 0u;

@@ -33,6 +33,8 @@
 
 #include <agnav_mavlink.h>
 
+#include "params.h"
+
 #define SIGNING_KEY_ADDR 0x0040u
 #define SIGNING_KEY_COPY_ADDR 0x00B0u
 #define SIGNING_KEY_RECORD_BYTES 36u
@@ -84,5 +86,8 @@ void signing_set_provisioning(bool open);
  * telemetry goes out unsigned when off (docs/safety.md "Signing"). Cheap, may be called
  * every link task. */
 void signing_set_sign_telemetry(bool on);
+/* The parameter (signing_params.c: SIGN_TELEM, 1 = sign). */
+extern uint8_t signing_param_sign_telem;
+extern const PARAMS_ROM param_group_t SIGNING_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
 
 #endif

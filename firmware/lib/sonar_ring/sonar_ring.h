@@ -46,6 +46,7 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+#include "params.h"
 #include "units.h"
 
 #ifdef __cplusplus
@@ -98,6 +99,12 @@ typedef struct {
 extern const sonar_ring_cfg_t SONAR_RING_12_SDLG;
 extern const sonar_ring_cfg_t SONAR_RING_6_HCSR04;
 extern const sonar_ring_cfg_t SONAR_RING_1_SRF05;
+
+/* The parameter (sonar_ring_params.c: SONAR_COUNT, taken at boot) and its preset:
+ * 12, 6, 1 -> the ring above, anything else -> NULL (no sonar). */
+extern uint8_t sonar_ring_param_count;
+extern const PARAMS_ROM param_group_t SONAR_RING_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
+const sonar_ring_cfg_t *sonar_ring_for_count(uint8_t count);
 
 /* One complete ring pass, as handed to the behaviour layers. */
 typedef struct {

@@ -1,5 +1,5 @@
 /*
- * Integer unit helpers shared by firmware modules (header only, no state).
+ * Integer unit helpers shared by firmware modules (no state; units.c holds the one not inlined).
  *
  * Firmware quantities are suffixed integers: _um, _mm, _mm_s, _cdeg,
  * _cdeg_s, _us, _ms. Helpers here are exact for the documented input ranges
@@ -59,6 +59,23 @@ static inline int32_t units_floordiv1000(int32_t t, int16_t *rem)
     *rem = (int16_t)r;
     return q;
 }
+
+/* |v| as unsigned: defined for INT32_MIN too (2^31), where -v would overflow. The one abs of the
+ * firmware (an absolute difference: units_abs_u32((int32_t)a - b)). */
+static inline uint32_t units_abs_u32(int32_t v) { return v < 0 ? 0u - (uint32_t)v : (uint32_t)v; }
+
+/* The rounding division of the firmware: n / d to the nearest integer, halves up (d > 0, n + d / 2
+ * within 32 bits). */
+static inline uint32_t units_div_round_u32(uint32_t n, uint32_t d) { return (n + d / 2u) / d; }
+
+/* The same with halves away from zero, for a signed n (d > 0, |n| + d / 2 within 32 bits; one
+ * division: C's truncates toward zero). */
+static inline int32_t units_div_round_i32(int32_t n, int32_t d) { return (n >= 0 ? n + d / 2 : n - d / 2) / d; }
+
+/* The same in 64 bits (d > 0, n + d / 2 within 64 bits): configuration, and the rare wide case of a
+ * speed estimate. Not inlined (units.c): on the AVR 64-bit division is a library call with a long
+ * argument setup, written out once. */
+uint64_t units_div_round_u64(uint64_t n, uint64_t d);
 
 /* Speed and distance conversions (exact integer scale factors). */
 static inline int32_t units_mm_from_cm(int32_t cm) { return cm * 10L; }

@@ -4,6 +4,7 @@
 #include "unity.h"
 
 #include "behaviour.h"
+#include "params.h"
 #include "sonar_ring.h"
 
 #define TICK_MS 20u
@@ -43,9 +44,13 @@ static void host_cmd(int16_t steer, int16_t speed)
 
 static void tick(void) { behaviour_step(&in, &out); }
 
+/* The behaviour group alone: params_init() writes its rows' defaults into behaviour_params. */
+static const PARAMS_ROM param_group_ref_t GROUPS[] = {&BEHAVIOUR_PARAM_GROUP};
+
 static void reinit(void)
 {
-    behaviour_init(0, &SONAR_RING_12_SDLG);
+    params_init(GROUPS, 1u);
+    behaviour_init(&behaviour_params, &SONAR_RING_12_SDLG);
 }
 
 void setUp(void)
@@ -134,8 +139,8 @@ void test_behaviour_host_command_is_limited_to_max_speed_and_steer(void)
     host_cmd(9000, -3000);
     tick();
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
-    TEST_ASSERT_EQUAL_INT16(BEHAVIOUR_PARAMS_DEFAULT.max_steer_cdeg, out.steer_cdeg);
-    TEST_ASSERT_EQUAL_INT16(-BEHAVIOUR_PARAMS_DEFAULT.max_speed_mm_s, out.speed_mm_s);
+    TEST_ASSERT_EQUAL_INT16(behaviour_params.max_steer_cdeg, out.steer_cdeg);
+    TEST_ASSERT_EQUAL_INT16(-behaviour_params.max_speed_mm_s, out.speed_mm_s);
 }
 
 void test_behaviour_manual_override_expires_after_manual_timeout(void)
@@ -150,7 +155,7 @@ void test_behaviour_manual_override_expires_after_manual_timeout(void)
         host_cmd(0, 300);
         tick();
         uint32_t age = in.now_ms - t0;
-        if (age <= BEHAVIOUR_PARAMS_DEFAULT.manual_timeout_ms) {
+        if (age <= behaviour_params.manual_timeout_ms) {
             TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_MANUAL, out.layer, "fresh override commands");
             TEST_ASSERT_EQUAL_INT16(-150, out.speed_mm_s);
         } else {
@@ -172,12 +177,12 @@ void test_behaviour_link_loss_stops_by_timeout_plus_one_tick_not_before(void)
     for (uint8_t k = 0; k < 60u; k++) {
         tick();
         uint32_t age = in.now_ms - t_last_rx;
-        if (age <= BEHAVIOUR_PARAMS_DEFAULT.link_timeout_ms) {
+        if (age <= behaviour_params.link_timeout_ms) {
             TEST_ASSERT_EQUAL_INT16_MESSAGE(500, out.speed_mm_s, "stopped before the link timeout");
         } else if (t_stop == 0u) {
             t_stop = in.now_ms;
         }
-        if (age >= BEHAVIOUR_PARAMS_DEFAULT.link_timeout_ms + TICK_MS) {
+        if (age >= behaviour_params.link_timeout_ms + TICK_MS) {
             TEST_ASSERT_EQUAL_INT16_MESSAGE(0, out.speed_mm_s, "still moving after timeout + one tick");
             TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FAILSAFE, out.layer);
             TEST_ASSERT_EQUAL_UINT8(BHV_REASON_LINK_LOSS, out.reason);
@@ -185,7 +190,7 @@ void test_behaviour_link_loss_stops_by_timeout_plus_one_tick_not_before(void)
         }
         in.now_ms += TICK_MS;
     }
-    TEST_ASSERT_UINT32_WITHIN_MESSAGE(TICK_MS / 2u, t_last_rx + BEHAVIOUR_PARAMS_DEFAULT.link_timeout_ms + TICK_MS / 2u,
+    TEST_ASSERT_UINT32_WITHIN_MESSAGE(TICK_MS / 2u, t_last_rx + behaviour_params.link_timeout_ms + TICK_MS / 2u,
                                       t_stop, "first stopped tick");
     /* link back: host command resumes without arming */
     link_fresh();
@@ -200,7 +205,7 @@ void test_behaviour_new_params_apply_at_once_and_keep_the_latches(void)
     in.estop = true;
     tick(); /* latched */
     in.estop = false;
-    behaviour_params_t p = BEHAVIOUR_PARAMS_DEFAULT;
+    behaviour_params_t p = behaviour_params;
     p.max_speed_mm_s = 150;
     p.link_timeout_ms = 2000u;
     behaviour_set_params(&p);
@@ -321,7 +326,7 @@ static uint32_t run_until_reason(uint8_t reason, uint16_t max_ticks)
 
 void test_behaviour_avoid_runs_stop_backoff_wait_release_with_timings(void)
 {
-    const behaviour_params_t *p = &BEHAVIOUR_PARAMS_DEFAULT;
+    const behaviour_params_t *p = &behaviour_params;
     in.speed_mm_s = 400;
     set_range(11, 250u); /* person front-right, inside the cone and the 300 mm limit */
     uint32_t t0 = run_until_reason(BHV_REASON_OBSTACLE_STOP, 5u);
@@ -353,7 +358,7 @@ void test_behaviour_avoid_repeats_cycle_when_obstacle_stays(void)
     uint32_t t_wait = run_until_reason(BHV_REASON_OBSTACLE_WAIT, 200u);
     TEST_ASSERT_TRUE(t_wait > t0);
     uint32_t t_again = run_until_reason(BHV_REASON_OBSTACLE_STOP, 200u);
-    TEST_ASSERT_UINT32_WITHIN_MESSAGE(TICK_MS, t_wait + BEHAVIOUR_PARAMS_DEFAULT.avoid_wait_ms, t_again,
+    TEST_ASSERT_UINT32_WITHIN_MESSAGE(TICK_MS, t_wait + behaviour_params.avoid_wait_ms, t_again,
                                       "blocked path: stop again right after the wait");
 }
 
@@ -396,7 +401,7 @@ void test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance(void
     tick();
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
     TEST_ASSERT_INT16_WITHIN(20, 0, out.steer_cdeg);
-    TEST_ASSERT_EQUAL_INT16(BEHAVIOUR_PARAMS_DEFAULT.goal_speed_mm_s, out.speed_mm_s);
+    TEST_ASSERT_EQUAL_INT16(behaviour_params.goal_speed_mm_s, out.speed_mm_s);
 
     in.goal_x_mm = 1000; /* 45 deg to the right, 1.41 m */
     in.goal_y_mm = -1000;
@@ -431,7 +436,7 @@ void test_behaviour_wall_steers_away_from_nearer_side(void)
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FOLLOW_WALL, out.layer);
     TEST_ASSERT_EQUAL_UINT8(BHV_REASON_WALL_RIGHT, out.reason);
     TEST_ASSERT_TRUE_MESSAGE(out.steer_cdeg > 0, "turn left, away from the right wall");
-    TEST_ASSERT_TRUE(out.speed_mm_s > 0 && out.speed_mm_s < BEHAVIOUR_PARAMS_DEFAULT.wall_speed_mm_s);
+    TEST_ASSERT_TRUE(out.speed_mm_s > 0 && out.speed_mm_s < behaviour_params.wall_speed_mm_s);
     uint32_t l, r;
     behaviour_wall_extents(&l, &r);
     TEST_ASSERT_TRUE(r > l);
@@ -526,7 +531,7 @@ static uint16_t canyon_ray_mm(int32_t a_cdeg)
  * changes; *heading gets the final heading. */
 static uint16_t canyon_run(uint16_t canyon_ms, int32_t *heading)
 {
-    behaviour_params_t p = BEHAVIOUR_PARAMS_DEFAULT;
+    behaviour_params_t p = behaviour_params;
     p.wall_canyon_ms = canyon_ms;
     behaviour_init(&p, &SONAR_RING_12_SDLG);
     in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
@@ -563,7 +568,7 @@ static uint16_t canyon_run(uint16_t canyon_ms, int32_t *heading)
 void test_behaviour_canyon_timers_bound_left_right_switching_in_dead_end(void)
 {
     int32_t h = 0;
-    uint16_t changes = canyon_run(BEHAVIOUR_PARAMS_DEFAULT.wall_canyon_ms, &h);
+    uint16_t changes = canyon_run(behaviour_params.wall_canyon_ms, &h);
     /* At most one switch per canyon period would already be bounded (13 in
      * 20 s); the committed turn actually escapes with (almost) none. */
     TEST_ASSERT_TRUE_MESSAGE(changes <= 3u, "left-right switching not bounded");

@@ -13,8 +13,10 @@
 
 static uint16_t s_timeout_ms;
 static const PARAMS_ROM param_def_t TABLE[] = {
-    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+    {"LINK_TIMEOUT_MS", 0, PARAM_U16, &s_timeout_ms, 100, 5000, 500},
 };
+static const PARAMS_ROM param_group_t GROUP = PARAM_GROUP(TABLE);
+static const PARAMS_ROM param_group_ref_t GROUPS[] = {&GROUP};
 
 static mavlink_message_t s_msg;
 
@@ -26,8 +28,7 @@ static uint8_t robot_sent(uint32_t msgid) { return wire_take(msgid, &s_msg); }
 void setUp(void)
 {
     sim_reset();
-    s_timeout_ms = 500u;
-    params_init(TABLE, 1u);
+    params_init(GROUPS, 1u); /* LINK_TIMEOUT_MS 500 */
     link_cfg_t cfg = {1u, 1u, 2460, 2000, 0, 0u, 0};
     link_init(&cfg);
 }

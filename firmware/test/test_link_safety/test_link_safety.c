@@ -15,8 +15,10 @@
 
 static uint16_t s_timeout_ms;
 static const PARAMS_ROM param_def_t TABLE[] = {
-    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+    {"LINK_TIMEOUT_MS", 0, PARAM_U16, &s_timeout_ms, 100, 5000, 500},
 };
+static const PARAMS_ROM param_group_t GROUP = PARAM_GROUP(TABLE);
+static const PARAMS_ROM param_group_ref_t GROUPS[] = {&GROUP};
 
 static mavlink_message_t s_msg;
 
@@ -32,8 +34,7 @@ static uint8_t robot_sent(uint32_t msgid) { return wire_take(msgid, &s_msg); }
 void setUp(void)
 {
     sim_reset();
-    s_timeout_ms = 500u;
-    params_init(TABLE, 1u);
+    params_init(GROUPS, 1u); /* LINK_TIMEOUT_MS 500 */
     link_cfg_t cfg = {US, 1u, 2460, 2000, 0, 0u, 0};
     link_init(&cfg);
 }
@@ -255,12 +256,14 @@ static void test_link_param_set_broadcast_is_refused(void)
 static void test_link_param_set_rounds_as_the_float_expression(void)
 {
     static int32_t s_wide;
-    static const PARAMS_ROM param_def_t WIDE[] = {{"WIDE", PARAM_I32, &s_wide, -16777216, 16777216}};
+    static const PARAMS_ROM param_def_t WIDE[] = {{"WIDE", 0, PARAM_I32, &s_wide, -16777216, 16777216, 0}};
+    static const PARAMS_ROM param_group_t WIDE_GROUP = PARAM_GROUP(WIDE);
+    static const PARAMS_ROM param_group_ref_t WIDE_GROUPS[] = {&WIDE_GROUP};
     static const float V[] = {0.49999997f, 0.5f, 1.5f, 2.5f, -0.5f, -2.5f, 0.25f, 0.24999999f, 1e-30f, -0.0f,
                               1234.4999f, -1234.5f, 8388607.5f, 8388609.0f, 8388611.0f, -8388609.0f, 16777215.0f,
                               -16777215.0f, 4194304.5f, 0.75f};
     static const char ID[16] = "WIDE"; /* the pack copies all 16 bytes */
-    params_init(WIDE, 1u);
+    params_init(WIDE_GROUPS, 1u);
     for (uint8_t i = 0; i < sizeof V / sizeof V[0]; i++) {
         volatile float f = V[i];
         int32_t want = (int32_t)(f >= 0.0f ? f + 0.5f : f - 0.5f);

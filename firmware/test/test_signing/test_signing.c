@@ -18,8 +18,10 @@
 
 static uint16_t s_timeout_ms;
 static const PARAMS_ROM param_def_t TABLE[] = {
-    {"LINK_TIMEOUT_MS", PARAM_U16, &s_timeout_ms, 100, 5000},
+    {"LINK_TIMEOUT_MS", 0, PARAM_U16, &s_timeout_ms, 100, 5000, 500},
 };
+static const PARAMS_ROM param_group_t GROUP = PARAM_GROUP(TABLE);
+static const PARAMS_ROM param_group_ref_t GROUPS[] = {&GROUP};
 
 static const uint8_t KEY[32] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16,
                                 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32};
@@ -112,8 +114,7 @@ static void setup_signing(const uint8_t *sign_with, const uint8_t *new_key, uint
 
 static void boot(uint16_t window_ms)
 {
-    s_timeout_ms = 500u;
-    params_init(TABLE, 1u);
+    params_init(GROUPS, 1u); /* LINK_TIMEOUT_MS 500 */
     sim_time_set_us(s_now_ms * 1000u);
     link_cfg_t cfg = {US, 1u, 2460, 2000, 0, window_ms, 0};
     storage_init();

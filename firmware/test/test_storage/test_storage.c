@@ -17,10 +17,12 @@ static int16_t s_b_cdeg;
 static int32_t s_c;
 
 static const PARAMS_ROM param_def_t TABLE[] = {
-    {"A_MS", PARAM_U16, &s_a_ms, 0, 60000},
-    {"B_CDEG", PARAM_I16, &s_b_cdeg, -9000, 9000},
-    {"C_VALUE", PARAM_I32, &s_c, -1000000, 1000000},
+    {"A_MS", 0, PARAM_U16, &s_a_ms, 0, 60000, 500},
+    {"B_CDEG", 1, PARAM_I16, &s_b_cdeg, -9000, 9000, 0},
+    {"C_VALUE", 2, PARAM_I32, &s_c, -1000000, 1000000, 42},
 };
+static const PARAMS_ROM param_group_t GROUP = PARAM_GROUP(TABLE);
+static const PARAMS_ROM param_group_ref_t GROUPS[] = {&GROUP};
 
 static uint32_t s_now_us;
 
@@ -45,13 +47,6 @@ uint8_t storage_record_byte(uint8_t record, uint16_t pos)
 }
 static uint8_t keep[SIM_EEPROM_SIZE]; /* the EEPROM across a power cut */
 
-static void defaults(void)
-{
-    s_a_ms = 500u;
-    s_b_cdeg = 0;
-    s_c = 42;
-}
-
 static void set_values(uint16_t a, int16_t b, int32_t c)
 {
     s_a_ms = a;
@@ -59,11 +54,10 @@ static void set_values(uint16_t a, int16_t b, int32_t c)
     s_c = c;
 }
 
-/* A boot: the modules' defaults, then the stored record. */
+/* A boot: the rows' defaults (params_init), then the stored record. */
 static params_result_t boot(void)
 {
-    defaults();
-    params_init(TABLE, 3u);
+    params_init(GROUPS, 1u);
     storage_init();
     calib_init();
     return params_load();

@@ -30,6 +30,7 @@
 #include "../../encoder/encoder_isr.h"
 #include "board.h"
 #include "flash_eeprom.h"
+#include "../../units/units.h"
 
 #include <string.h>
 
@@ -384,7 +385,7 @@ void USART1_IRQHandler(void)
  * fixed point (DIV_Mantissa, DIV_Fraction), i.e. BRR = 16 USARTDIV = f_PCLK / baud; rounded to the
  * nearest sixteenth (a fraction that rounds up to 16 carries into the mantissa by itself). The
  * rate is then f_PCLK / BRR: from the 84 MHz APB2 within 0.03 % of 9600..115200, 0.11 % at 230400. */
-static uint32_t usart_brr(uint32_t pclk_hz, uint32_t baud) { return (pclk_hz + baud / 2u) / baud; }
+static uint32_t usart_brr(uint32_t pclk_hz, uint32_t baud) { return units_div_round_u32(pclk_hz, baud); }
 
 void hal_uart_init(uint8_t port, uint32_t baud)
 {
