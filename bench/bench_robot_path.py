@@ -23,6 +23,7 @@ import numpy as np
 from agnav_host.sil.robot_path import row_distance_of, run_robot_path, timed_errors
 from agnav_host.sil.session import run_sil_scenario
 from agnav_host.sim.metrics import row_distance
+from agnav_host.types import norm_angle_rad
 from agnav_host.sim.scenario import load_scenario
 
 # name, scenario, controller, emulated lasers, duration (None: the scenario's)
@@ -53,7 +54,7 @@ def figures(name: str, sc, tr: np.ndarray, end: str, arrival_s: float | None) ->
         g = sc.goals[-1]
         e = tr[-1]
         f["final error, m"] = math.hypot(e[1] - g.x_m, e[2] - g.y_m)
-        f["heading error, deg"] = abs(math.degrees((e[3] - g.yaw_rad + math.pi) % (2 * math.pi) - math.pi))
+        f["heading error, deg"] = abs(math.degrees(norm_angle_rad(e[3] - g.yaw_rad)))
         f["arrival error, s"] = None if arrival_s is None else arrival_s - g.arrival_s
     return f
 

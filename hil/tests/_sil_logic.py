@@ -6,6 +6,7 @@ import math
 
 from agnav_host.protocol import new_codec
 from agnav_host.sil import Firmware, SilSession
+from agnav_host.types import norm_angle_rad
 
 
 def decode(data: bytes):
@@ -80,6 +81,6 @@ class PurePursuit:
         if self.stopped:
             s.host.setpoint_si(0.0, 0.0)
             return
-        alpha = (math.atan2(dy, dx) - pose.yaw_rad + math.pi) % (2 * math.pi) - math.pi
+        alpha = norm_angle_rad(math.atan2(dy, dx) - pose.yaw_rad)
         steer = math.atan2(2.0 * s.sc.robot_params.track_m * math.sin(alpha), max(d, 0.3))
         s.host.setpoint_si(steer, min(0.4, 0.2 + d))

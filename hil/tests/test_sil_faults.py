@@ -338,14 +338,14 @@ def test_corrupt_calibration_in_both_slots_falls_back_to_defaults_with_error():
 
 
 def _params_in_table() -> int:
-    """Rows of the PARAMS table in firmware/src/main.c (as tools/gen_param_doc.py reads them)."""
+    """Parameter rows of the groups firmware/src/main.c lists (as tools/gen_param_doc.py reads them)."""
     import importlib.util
 
     root = Path(__file__).resolve().parents[2]
     spec = importlib.util.spec_from_file_location("gen_param_doc", root / "tools" / "gen_param_doc.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    return len(list(mod.ROW.finditer((root / "firmware" / "src" / "main.c").read_text(encoding="utf-8"))))
+    return len(mod.rows())
 
 
 def test_corrupt_parameters_fall_back_to_defaults_with_error():

@@ -62,17 +62,6 @@ class CalibTable:
     def __post_init__(self) -> None:
         check_table(self)
 
-    # ---- dead band -------------------------------------------------------------------------
-    @property
-    def deadband_lo_pwm(self) -> float:
-        """Lower end of the dead band (exclusive), PWM."""
-        return self.neg_pwm[0] if self.neg_pwm else self.pwm_min - 1.0
-
-    @property
-    def deadband_hi_pwm(self) -> float:
-        """Upper end of the dead band (exclusive), PWM."""
-        return self.pos_pwm[0] if self.pos_pwm else self.pwm_max + 1.0
-
     # ---- forward: what the actuator does -----------------------------------------------------
     def value_from_pwm(self, pwm: float | npt.ArrayLike) -> Any:
         """Physical value (rad or m/s) produced by a PWM command; scalar in, float out."""

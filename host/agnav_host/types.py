@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TypeAlias
+from typing import TypeAlias, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -23,13 +23,12 @@ Segments: TypeAlias = npt.NDArray[np.float64]
 Circles: TypeAlias = npt.NDArray[np.float64]
 
 
-def norm_angle_rad(a: float) -> float:
-    """Wrap an angle to [-pi, pi). Input and output in rad."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def norm_angle_arr(a: FloatArray) -> FloatArray:
-    """:func:`norm_angle_rad` element-wise, rad."""
+@overload
+def norm_angle_rad(a: float) -> float: ...
+@overload
+def norm_angle_rad(a: FloatArray) -> FloatArray: ...
+def norm_angle_rad(a: float | FloatArray) -> float | FloatArray:
+    """Wrap an angle, or every angle of an array, to [-pi, pi). Input and output in rad."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 

@@ -1,9 +1,10 @@
-"""Helpers of the CLI input tests: a free TCP port, a device nobody listens on, no user config, and argparse's
-refusal of a command line."""
+"""Helpers of the CLI input tests: a free TCP port, a device nobody listens on, no user config, argparse's
+refusal of a command line, and a small telemetry log."""
 
 from __future__ import annotations
 
 import socket
+from pathlib import Path
 
 import pytest
 
@@ -37,3 +38,16 @@ def usage_error(capsys, argv: list[str]) -> str:
         cli.main(argv)
     assert e.value.code == 2
     return capsys.readouterr().err
+
+
+def heartbeat_tlog(path: Path) -> Path:
+    """A telemetry log of 11 robot heartbeats, 0.1 s apart."""
+    from agnav_host.link.tlog import TlogWriter
+    from agnav_host.protocol import dialect
+
+    d = dialect()
+    robot = d.MAVLink(None, srcSystem=1, srcComponent=1)
+    with TlogWriter(path) as w:
+        for i in range(11):
+            w.write(robot.heartbeat_encode(d.MAV_TYPE_GROUND_ROVER, 0, 0, 0, 4).pack(robot), 1.7e9 + 0.1 * i)
+    return path

@@ -5,16 +5,24 @@ import argparse
 
 import pytest
 
-from agnav_host.cli import _join_negative_values, _value_options, build_parser, finite_float, int_in, main, positive_float
+from agnav_host.cli import finite_float, int_in, main, parse_args, positive_float
+from agnav_host.cli.argv import Options, arrange
 
 
 def test_any_value_option_takes_a_negative_number_after_a_space():
-    opts = _value_options(build_parser())
-    # --duration: joined because it takes a value (read from the parser)
-    assert _join_negative_values(["sim", "--duration", "-1e0", "--out", "o"], opts) == ["sim", "--duration=-1e0", "--out", "o"]
-    assert _join_negative_values(["sim", "--goal", "-inf,3,90", "--out", "o"], opts)[1] == "--goal=-inf,3,90"
+    assert parse_args(["sim", "--goal", "-3,5,90", "--out", "o"]).goal == (-3.0, 5.0, 90.0)
+    # --duration: joined because it takes a value (as the parser declares it)
+    top = Options.of([(("-h", "--help"), False), (("--log-level",), True)])
+    sim = {"sim": Options.of([(("--duration",), True), (("--goal",), True), (("--out",), True), (("--quiet",), False)])}
+    assert arrange(["sim", "--duration", "-1e0", "--out", "o"], top, sim) == ["sim", "--duration=-1e0", "--out=o"]
+    assert arrange(["sim", "--goal", "-inf,3,90", "--out", "o"], top, sim)[1] == "--goal=-inf,3,90"
     # a flag is never joined with what follows it, and a non-number is left alone
-    assert _join_negative_values(["sim", "--quiet", "-1", "--out", "-x"], opts) == ["sim", "--quiet", "-1", "--out", "-x"]
+    assert arrange(["sim", "--quiet", "-1", "--out", "-x"], top, sim) == ["sim", "--quiet", "--out", "-x", "--", "-1"]
+    # abbreviations as argparse resolves them; the positionals last, in the order typed
+    assert arrange(["sim", "--dur", "-2", "s.toml", "--q"], top, sim) == ["sim", "--dur=-2", "--q", "--", "s.toml"]
+    # agnav's own options before the command, its value joined as typed
+    assert arrange(["--log-level", "debug", "sim", "--goal", "-1,2"], top, sim) == ["--log-level", "debug", "sim",
+                                                                                   "--goal=-1,2"]
 
 
 def test_negative_duration_is_refused_with_the_options_name(tmp_path, capsys):
@@ -92,7 +100,7 @@ def test_number_types():
     ("ruts", "vfh+ground-guard", "[laser]"),  # a tilted laser only
 ])
 def test_sim_refuses_a_planner_whose_sensor_the_scenario_lacks(tmp_path, capsys, scenario, planner, needs):
-    """Before the run (it used to stop at the first step with an InvalidObservation traceback)."""
+    """Before the run, not at its first step with an InvalidObservation traceback."""
     assert main(["sim", scenario, "--planner", planner, "--out", str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert f"planner {planner!r} needs a {needs}" in err and "Traceback" not in err

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from agnav_host import cli
-from agnav_host.link import commands
+from agnav_host.cli import run as run_command
 from agnav_host.link.config import ConfigError, HostConfig, load_config, to_toml
 from agnav_host.link.fake import FakeRobot
 from agnav_host.link.tlog import TlogWriter
@@ -315,7 +315,7 @@ def test_planner_errors_lose_internal_names():
     from agnav_host.planning.base import InvalidObservation
 
     e = InvalidObservation("the subsumption planner needs a sonar frame (obs.sonar is None)")
-    assert commands._plain(e) == "the subsumption planner needs a sonar frame"
+    assert run_command._plain(e) == "the subsumption planner needs a sonar frame"
 
 
 # ---- 12. replay --budget ------------------------------------------------------------------------------

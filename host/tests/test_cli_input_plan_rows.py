@@ -280,7 +280,7 @@ def test_bench_unknown_planner_is_named_with_the_known_ones(no_run, capsys):
 
 
 # A10 (CLI audit): empty filters are an error; a subset run never replaces the default folder's full tables
-# (an empty value, "--planners ''", is refused by argparse as every empty text option is: test_cli_input_small.py)
+# (an empty value, "--planners ''", is refused by argparse as every empty text option is: test_cli_typed_values.py)
 @pytest.mark.parametrize("opt, val", [("--scenarios", ","), ("--planners", " "), ("--planners", ",,")])
 def test_bench_empty_filter_is_an_error(opt, val, tmp_path, no_run, capsys):
     assert main(["bench", "planners", "--out", str(tmp_path / "o"), opt, val, "--quiet", "--no-plot"]) == 2
@@ -331,7 +331,7 @@ def test_bench_says_at_once_what_is_under_way(tmp_path, no_run, capsys):
 
 
 def test_bench_never_starts_more_workers_than_runs(monkeypatch, tmp_path, capsys):
-    """``--jobs 100000`` used to start that many processes for a two-run subset."""
+    """``--jobs 100000`` starts two processes for a two-run subset, not that many."""
     import agnav_host.planning.bench as bench
 
     pools: list[int] = []
@@ -361,7 +361,7 @@ def test_bench_never_starts_more_workers_than_runs(monkeypatch, tmp_path, capsys
 @pytest.mark.parametrize("args, opt", [(["--arrive-in", "1e300"], "--arrive-in"), (["--arrive-in", "86401"], "--arrive-in"),
                                        (["--goal", "3e300,2,0"], "--goal"), (["--start", "0,-1e6,0"], "--start")])
 def test_plan_refuses_times_and_places_beyond_a_field_robot(args, opt, capsys):
-    """They used to print 300-digit durations and distances."""
+    """Refused naming the option, not printed as 300-digit durations and distances."""
     base = {"--start": "0,0,0", "--goal": "3,2,0"}
     for k, v in zip(args[::2], args[1::2]):
         base[k] = v

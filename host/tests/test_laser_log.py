@@ -11,7 +11,6 @@ import tracemalloc
 import numpy as np
 import pytest
 
-import agnav_host.perception.commands  # noqa: F401  (registers `rows`)
 from agnav_host.cli import main
 from agnav_host.lasers import (LaserAddressError, LaserMount, LaserSource, LaserUrlError, TelegramError,
                                WrongDeviceError, open_laser)

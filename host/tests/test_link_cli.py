@@ -10,8 +10,9 @@ import time
 import pytest
 
 from agnav_host import cli
-from agnav_host.link import commands, run_command
-from agnav_host.link.config import ConfigError, config_template, load_config
+from agnav_host.cli import link as commands
+from agnav_host.cli import run as run_command
+from agnav_host.link.config import ConfigError, HostConfig, config_template, load_config, validate_config
 from agnav_host.link.fake import FakeRobot
 
 LINK_COMMANDS = ["run", "calibrate", "flash", "replay", "param", "key", "config"]
@@ -26,9 +27,7 @@ def test_help_on_every_command(name, capsys):
 
 
 def test_negative_goal_is_a_value():
-    p = cli.build_parser()
-    ns = p.parse_args(cli._join_negative_values(["run", "--device", "tcp:127.0.0.1:1", "--goal", "-3,-5,-90"],
-                                                cli._value_options(p)))
+    ns = cli.parse_args(["run", "--device", "tcp:127.0.0.1:1", "--goal", "-3,-5,-90"])
     assert ns.goal == [(-3.0, -5.0, -90.0)]  # --goal repeats for waypoints
 
 
@@ -133,3 +132,10 @@ def test_run_usage_errors(capsys):
     assert cli.main(["run", "--device", "tcp:127.0.0.1:9", "--planner", "subsumption"]) == 2
     assert cli.main(["run", "--device", "tcp:127.0.0.1:9", "--planner", "nope", "--goal", "1,1"]) == 2
     assert "unknown planner" in capsys.readouterr().err
+
+
+def test_a_calibration_step_must_outlast_its_settling():
+    cfg = HostConfig()
+    cfg.calibration.settle_s, cfg.calibration.max_step_s = 2.0, 1.5
+    with pytest.raises(ConfigError, match=r"\[calibration\] settle_s: must be < max_step_s"):
+        validate_config(cfg)

@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import pytest
 
-import agnav_host.perception.commands  # noqa: F401  (registers `rows`)
 from agnav_host.cli import main
 from agnav_host.scanio import save_scan_csv
 from agnav_host.sim.sensors import Laser2D, laser_preset

@@ -11,8 +11,6 @@ from agnav_host.perception import (
     ProximityFollowerParams,
     RowFollower,
     RowFollowerParams,
-    RowNavigator,
-    RowNavigatorParams,
     headland_path,
 )
 from agnav_host.sim.metrics import signed_offset_m
@@ -107,22 +105,6 @@ def test_headland_path_ends_in_the_next_row_facing_back(shift, radius):
     # curvature never tighter than the radius: chord = 2 R sin(dyaw / 2) on an arc of radius R
     dyaw = np.abs(np.diff(p[:, 2]))
     assert np.all(2 * radius * np.sin(dyaw / 2) <= step + 1e-9)
-
-
-@pytest.mark.parametrize("model", ["diff_drive", "ackermann"])
-def test_navigator_turns_into_the_next_row_and_follows_it_back(model):
-    sc = parse_scenario(_lane_toml(model, length_m=3.0, start_y_m=0.0, start_yaw_deg=0.0), "<lane>")
-    assert sc.laser is not None
-    lim = DriveLimits(model)
-    nav = RowNavigator(RowNavigatorParams(RowFollowerParams(method="ransac", speed_m_s=0.3, limits=lim, mount=sc.laser.mount),
-                                          first_turn="left"))
-    traj = _run(sc, nav, 45.0)
-    assert nav.turns >= 1, f"{model}: no headland turn (phase {nav.phase})"
-    assert traj[:, 4].min() > 0.0, f"{model}: touched a plant"
-    back = traj[(traj[:, 1] > 0.5) & (traj[:, 1] < 2.0) & (np.cos(traj[:, 3]) < -0.9)]
-    assert len(back) > 20, f"{model}: never drove back along the rows"
-    # the next lane to the left is centred on y = 0.75
-    assert np.abs(back[:, 2] - 0.75).max() < 0.08, f"{model}: lateral error {np.abs(back[:, 2] - 0.75).max():.3f} m"
 
 
 def test_proximity_follower_keeps_the_distance_to_a_straight_row():

@@ -11,7 +11,7 @@ from agnav_host.sim import load_scenario, run_scenario
 REFERENCE_PLANNERS = ["flb", "him", "vfh", "pbf", "apf", "subsumption", "follow-path"]
 
 
-def test_registry_has_the_issue_names_and_builds_each():
+def test_registry_lists_the_reference_planners_first_and_builds_each():
     assert planner_names()[: len(REFERENCE_PLANNERS)] == REFERENCE_PLANNERS  # later planners (timed) come after
     for n in REFERENCE_PLANNERS:
         p = make_planner(n, RobotSpec())

@@ -14,7 +14,7 @@ from agnav_host import cli
 from agnav_host.calib import default_speed_table, default_steering_table
 from agnav_host.calibration import fit as F
 from agnav_host.link.calib_wire import TABLE_SPEED, TABLE_STEER, from_calib_table, round_trips
-from agnav_host.planning.timed import BoundaryState, TimedLimits, TimedPlanner, TrackingParams, TrackState, plan_timed, steer_from_arc, track
+from agnav_host.planning.timed import BoundaryState, build_path, TimedLimits, TimedPlanner, TrackingParams, TrackState, plan_timed, steer_from_arc, track
 from agnav_host.perception import Track
 from agnav_host.planning.timed._obstacles import moving_obstacles_from
 from agnav_host.types import Goal, LaserScan, Observation, Pose2D
@@ -27,15 +27,22 @@ def _speeds(plan, n=4000):
 
 
 def test_planner_with_no_path_to_its_goal_stands_still_and_says_why():
-    # the goal straight behind the start, same heading: no forward path exists
+    # the goal is the start pose itself: there is nothing to drive
     pl = TimedPlanner()
     pl.reset()
-    goal = Goal(-3.0, 0.0, 0.0, 20.0, 0.05)
+    goal = Goal(0.0, 0.0, 0.0, 20.0, 0.05)
     for k in range(5):
         cmd = pl.step(Observation(k * 0.05, Pose2D(), 0.0, 0.0, goal, None, None, {}))
         assert (cmd.speed_m_s, cmd.steer_rad) == (0.0, 0.0)
     assert pl.status["feasible"] is False
-    assert "behind the start" in pl.status["reason"]
+    assert "the start is the goal" in pl.status["reason"]
+
+
+def test_a_goal_straight_behind_with_the_same_heading_is_reached_by_a_loop():
+    p = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(-3.0, 0.0, 0.0), 0.0, 20.0)
+    assert p.feasible, p.reason
+    assert p.path.kind.startswith("clothoid") and p.path.reverse_m == 0.0
+    assert p.max_steering_rad <= TimedLimits().plan_steer_rad + 1e-9
 
 
 @pytest.mark.parametrize("accel, v_min, dist", [(0.3, 0.435, 0.3), (0.5, 0.9, 1.0), (0.3, 0.435, 0.5)])
@@ -51,25 +58,32 @@ def test_too_short_to_reach_the_band_before_the_stop_is_a_plan_not_an_exception(
         assert max(abs(a) for a in ramps) <= accel + 1e-9
     else:
         assert "smallest move" in p.reason
-        assert p.earliest_arrival_s is None
+        # the straight move is too short; a loop of the path families gets there later
+        assert p.earliest_arrival_s is None or p.earliest_arrival_s > 10.0
     assert np.all(np.isfinite(dv))
 
 
 def test_plan_cli_reports_a_too_short_move_with_exit_3(capsys):
-    rc = cli.main(["plan", "--start", "0,0,0", "--goal", "0.3,0,0", "--arrive-in", "10", "--accel", "0.3", "--json"])
+    # too short a move straight ahead, and too little time for a loop round to it
+    rc = cli.main(["plan", "--start", "0,0,0", "--goal", "0.3,0,0", "--arrive-in", "4", "--accel", "0.3", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 3
     assert out["feasible"] is False and "smallest move" in out["reason"]
+    assert out["earliest_arrival_s"] > 4.0 and out["path_type"].startswith("clothoid")
 
 
 @pytest.mark.parametrize("dist, feasible", [(0.05, False), (0.10, False), (0.15, False), (0.25, True), (1.0, True)])
 def test_a_move_that_never_reaches_the_speed_band_is_not_feasible(dist, feasible):
     lim = TimedLimits()
+    straight = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(dist, 0.0, 0.0), 0.0, 5.0, lim,
+                          path=build_path([BoundaryState(0.0, 0.0, 0.0), BoundaryState(dist, 0.0, 0.0)], lim.wheelbase_m))
+    assert straight.feasible is feasible, straight.reason
     p = plan_timed(BoundaryState(0.0, 0.0, 0.0), BoundaryState(dist, 0.0, 0.0), 0.0, 5.0, lim)
-    assert p.feasible is feasible, p.reason
-    if feasible:
-        _, v = _speeds(p)
-        assert v.max() >= lim.v_min_m_s - 1e-9
+    assert p.feasible, p.reason  # a loop of the path families when the straight move is too short
+    if not feasible:
+        assert p.path.kind.startswith("clothoid") and p.path.length_m > 1.0
+    _, v = _speeds(p)
+    assert v.max() >= lim.v_min_m_s - 1e-9
 
 
 def test_stop_and_wait_without_room_to_brake_is_not_feasible_and_keeps_the_speed_continuous():

@@ -27,7 +27,6 @@ written.
 
 from __future__ import annotations
 
-import math
 import statistics
 import time
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ import numpy as np
 from ..link.calib_wire import TABLE_SPEED, TABLE_STEER, WireTable
 from ..link.config import CalibrationConfig
 from ..link.robot import AgnavRobot
+from ..units import cdeg_to_rad, milli_to_si, rad_to_cdeg, si_to_milli
 from .fit import CalibFitError, FitResult, fit_table, steer_from_diameter, steer_from_motion, yaw_rate_from_wheels
 
 __all__ = ["Wizard", "ConsoleIO", "ScriptedIO", "StepResult", "Aborted", "LinkLost", "InputClosed", "sweep_points",
@@ -251,21 +251,21 @@ class Wizard:
                         break
                     if el < c.settle_s:
                         continue
-                    speeds = [s / 1000.0 for s in m.speed_mm_s[:k]]
+                    speeds = [milli_to_si(s) for s in m.speed_mm_s[:k]]
                     v = statistics.mean(speeds)
                     if kind == "speed" and method == "encoders":
-                        values.append(v * 1000.0)
+                        values.append(si_to_milli(v))
                     elif kind == "steer" and method == "encoders" and k >= 2 and abs(v) >= MIN_SPEED_FOR_ANGLE_M_S:
                         w = yaw_rate_from_wheels(speeds[0], speeds[1], c.track_m)
-                        values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
+                        values.append(rad_to_cdeg(steer_from_motion(v, w, c.wheelbase_m)))
                 elif t == "AGNAV_ODOMETRY" and el >= c.settle_s and method == "odometry":
                     n_motion += 1
-                    v = m.speed_mm_s / 1000.0
+                    v = milli_to_si(m.speed_mm_s)
                     if kind == "speed":
                         values.append(float(m.speed_mm_s))
                     elif abs(v) >= MIN_SPEED_FOR_ANGLE_M_S:
-                        w = math.radians(m.yaw_rate_cdeg_s / 100.0)
-                        values.append(math.degrees(steer_from_motion(v, w, c.wheelbase_m)) * 100.0)
+                        w = cdeg_to_rad(m.yaw_rate_cdeg_s)
+                        values.append(rad_to_cdeg(steer_from_motion(v, w, c.wheelbase_m)))
         dur = time.monotonic() - t0
         if n_rx == 0 and dur >= 0.3:  # a whole step without one frame of 10-50 Hz telemetry: link gone
             raise self._link_lost(pwm, f"no telemetry during the {dur:.1f} s step")
@@ -337,7 +337,7 @@ class Wizard:
             return StepResult(r.pwm, [], r.duration_s, r.distance_m, False, "no diameter given")
         left = len(parts) > 1 and parts[1].upper().startswith("L")
         phi = steer_from_diameter(dia, self.cfg.wheelbase_m, left)
-        return StepResult(r.pwm, [math.degrees(phi) * 100.0], r.duration_s, r.distance_m, True, "diameter")
+        return StepResult(r.pwm, [rad_to_cdeg(phi)], r.duration_s, r.distance_m, True, "diameter")
 
     def _plot(self, fit: FitResult, path: Path, previous: WireTable) -> None:
         """The fit's PNG at ``path``, if it can be made: the plot only illustrates the fit, so no failure of it

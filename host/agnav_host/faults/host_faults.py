@@ -291,42 +291,47 @@ def _case_serial_unplugged() -> FaultOutcome:
 
 
 def _case_dead_downlink() -> FaultOutcome:
-    """`agnav run --planner subsumption` (sonar ring) drives the fake robot; its telemetry goes silent for 2 s
-    (commands still reach it): the host must stop commanding motion while it is blind."""
-    from .. import cli
-    from ..link.commands import POSE_STALE_S
+    """`agnav run --planner subsumption` (sonar ring) drives the fake robot; 2 s into the drive its telemetry goes
+    silent for 2 s (commands still reach it): the host must stop commanding motion while it is blind."""
     from ..link.fake import FakeRobot
+    from ..robot import POSE_STALE_S
 
     with FakeRobot() as fr:
-        rc: list[int] = []
-        t = threading.Thread(target=lambda: rc.append(cli.main(
-            ["run", "--device", fr.device, "--planner", "subsumption", "--goal", "20,0", "--duration", "7",
-             "--no-tlog"])), daemon=True)
+        p = subprocess.Popen([sys.executable, "-m", "agnav_host.cli", "run", "--device", fr.device, "--planner",
+                              "subsumption", "--goal", "20,0", "--duration", "7", "--no-tlog"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         samples: list[tuple[float, int]] = []  # (s since mute, speed of the newest setpoint)
-        t.start()
         t_start = time.monotonic()
-        t_mute = t_start + 3.0
-        muted = False
-        while t.is_alive() and time.monotonic() - t_start < 20.0:
+        t_mute: float | None = None  # 2 s after the first setpoint that moves the robot
+        while p.poll() is None and time.monotonic() - t_start < 30.0:
             now = time.monotonic()
-            if not muted and now >= t_mute:
-                fr.mute = muted = True
-            if muted and fr.mute and now >= t_mute + 2.0:
-                fr.mute = False
             sp = fr.received_of("AGNAV_DRIVE_SETPOINT")
-            if sp:
-                samples.append((now - t_mute, sp[-1].speed_mm_s))
+            if t_mute is None and sp and sp[-1].speed_mm_s > 0:
+                t_mute = now + 2.0
+            if t_mute is not None:
+                if not fr.mute and t_mute <= now < t_mute + 2.0:
+                    fr.mute = True
+                elif fr.mute and now >= t_mute + 2.0:
+                    fr.mute = False
+                if sp:
+                    samples.append((now - t_mute, sp[-1].speed_mm_s))
             time.sleep(0.02)
-        t.join(5.0)
+        try:
+            rc = p.wait(5.0)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            rc = None
+        err = p.stderr.read() if p.stderr else ""
     before = [v for ts, v in samples if -1.0 < ts < 0.0]
     during = [(ts, v) for ts, v in samples if 0.0 <= ts < 2.0]
     held = next((ts for ts, v in during if v == 0 and all(w == 0 for t2, w in during if t2 >= ts)), None)
     after = [v for ts, v in samples if 2.8 <= ts < 3.8]
     ok = (bool(before) and all(v > 0 for v in before) and held is not None and held <= POSE_STALE_S + 0.3
-          and any(v > 0 for v in after) and rc == [0])
+          and any(v > 0 for v in after) and rc == 0 and "Traceback" not in err)
     return FaultOutcome(f"driving at {max(before, default=0)} mm/s; telemetry silent -> zero setpoints "
                         f"{'after %.0f ms' % (held * 1000) if held is not None else 'NEVER'} and held; "
-                        f"telemetry back -> driving again ({max(after, default=0)} mm/s); exit {rc[0] if rc else 'hung'}", ok)
+                        f"telemetry back -> driving again ({max(after, default=0)} mm/s); "
+                        f"exit {rc if rc is not None else 'hung'}", ok)
 
 
 HOST_CASES = (

@@ -32,6 +32,8 @@ import numpy as np
 
 from ..calib import CalibTable, default_speed_table, default_steering_table
 from ..protocol import dialect
+from ..types import norm_angle_rad
+from ..units import cdeg_to_rad, milli_to_si, rad_to_cdeg, si_to_milli
 from .calib_wire import TABLE_SPEED, TABLE_SPEED_RIGHT, TABLE_STEER, WireTable, from_calib_table, from_message, validate
 
 __all__ = ["FakeRobot", "FIRMWARE_PARAMS"]
@@ -360,7 +362,7 @@ class FakeRobot:
             sp = self.setpoint
             if sp.mode == 1:
                 return 5, 12, flags, 0.0, 0.0, (sp.steer_pwm, sp.speed_pwm, sp.speed_mm_s < 0)
-            return 5, 12, flags, math.radians(sp.steer_cdeg / 100.0), sp.speed_mm_s / 1000.0, None
+            return 5, 12, flags, cdeg_to_rad(sp.steer_cdeg), milli_to_si(sp.speed_mm_s), None
         return 0, 15, flags, 0.0, 0.0, None
 
     def _step(self, dt: float) -> None:
@@ -372,8 +374,8 @@ class FakeRobot:
             steer_pwm, speed_pwm, rev = raw
             odom_steer = 0.0
         else:
-            steer_pwm = self.tables[TABLE_STEER].pwm(int(round(math.degrees(steer) * 100)))
-            speed_pwm = self.tables[TABLE_SPEED].pwm(int(round(abs(speed) * 1000)))
+            steer_pwm = self.tables[TABLE_STEER].pwm(int(round(rad_to_cdeg(steer))))
+            speed_pwm = self.tables[TABLE_SPEED].pwm(int(round(si_to_milli(abs(speed)))))
             rev = speed < 0
             odom_steer = steer
         phi = float(self.true_steer.value_from_pwm(steer_pwm))
@@ -382,7 +384,7 @@ class FakeRobot:
         c.yaw_rate = v * math.tan(phi) / self.L
         c.x += v * math.cos(c.yaw) * dt
         c.y += v * math.sin(c.yaw) * dt
-        c.yaw = (c.yaw + c.yaw_rate * dt + math.pi) % (2 * math.pi) - math.pi
+        c.yaw = norm_angle_rad(c.yaw + c.yaw_rate * dt)
         half = self.track / 2.0 * math.tan(phi) / self.L
         c.wheel_v = [v * (1 - half), v * (1 + half)]
         nm = self.params["ENC_NM_PER_CNT"] * 1e-9
@@ -392,10 +394,10 @@ class FakeRobot:
         c.odom_rate = v * math.tan(odom_steer) / self.L
         c.odom_x += v * math.cos(c.odom_yaw) * dt
         c.odom_y += v * math.sin(c.odom_yaw) * dt
-        c.odom_yaw = (c.odom_yaw + c.odom_rate * dt + math.pi) % (2 * math.pi) - math.pi
+        c.odom_yaw = norm_angle_rad(c.odom_yaw + c.odom_rate * dt)
 
     def _telemetry(self, key: str, t: float) -> None:
-        ms = int(t * 1000) & 0xFFFFFFFF
+        ms = int(si_to_milli(t)) & 0xFFFFFFFF
         c = self.car
         if self.autopilot == "ardupilot":
             if key == "1":
@@ -411,15 +413,15 @@ class FakeRobot:
         layer, reason, flags, steer, speed, _ = self.arbitration()
         if key == "50":
             self._send(self.mav.agnav_behaviour_status_encode(ms, layer, reason, flags,
-                                                              int(round(math.degrees(steer) * 100)),
-                                                              int(round(speed * 1000))))
+                                                              int(round(rad_to_cdeg(steer))),
+                                                              int(round(si_to_milli(speed)))))
         elif key == "10":
-            self._send(self.mav.agnav_odometry_encode(ms, int(c.odom_x * 1000), int(c.odom_y * 1000),
-                                                      int(round(math.degrees(c.odom_yaw) * 100)),
-                                                      int(round(c.v * 1000)),
-                                                      int(round(math.degrees(c.odom_rate) * 100))))
+            self._send(self.mav.agnav_odometry_encode(ms, int(si_to_milli(c.odom_x)), int(si_to_milli(c.odom_y)),
+                                                      int(round(rad_to_cdeg(c.odom_yaw))),
+                                                      int(round(si_to_milli(c.v))),
+                                                      int(round(rad_to_cdeg(c.odom_rate)))))
             noise = self.rng.normal(0.0, self.speed_noise, 2) if self.speed_noise > 0 else (0.0, 0.0)
-            sp = [int(round((c.wheel_v[i] + noise[i]) * 1000)) for i in range(2)]
+            sp = [int(round(si_to_milli(c.wheel_v[i] + noise[i]))) for i in range(2)]
             self._send(self.mav.agnav_encoder_status_encode(ms, [int(c.counts[0]), int(c.counts[1]), 0, 0],
                                                             sp + [0, 0], [0, 0, 0, 0], 2))
             if self.has_sonar:

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..units import cdeg_to_rad, milli_to_si
+
 from .state import LAYER_NAMES, REASON_NAMES
 from .tlog import MAV_TYPE_GCS, LogClock, read_tlog
 
@@ -136,7 +138,7 @@ def summarize_tlog(path: str | Path, host_sysid: int | None = None,
                 s.layers.append((rel, m.active_layer))
             last_layer = key
         elif typ == "AGNAV_ODOMETRY":
-            x, y, yaw = m.x_mm / 1e3, m.y_mm / 1e3, math.radians(m.yaw_cdeg / 100.0)
+            x, y, yaw = milli_to_si(m.x_mm), milli_to_si(m.y_mm), cdeg_to_rad(m.yaw_cdeg)
             if prev_xy is not None:
                 s.path_length_m += math.hypot(x - prev_xy[0], y - prev_xy[1])
             prev_xy = (x, y)

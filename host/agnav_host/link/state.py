@@ -20,6 +20,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..units import cdeg_to_rad, milli_to_si
+
 __all__ = [
     "LAYER_NAMES",
     "REASON_NAMES",
@@ -181,21 +183,21 @@ class RobotState:
             if target_system not in (None, 0) and msg.get_srcSystem() != target_system:
                 return
             if t == "AGNAV_ODOMETRY":
-                self.pose = PoseState(msg.time_boot_ms / 1e3, msg.x_mm / 1e3, msg.y_mm / 1e3,
-                                      math.radians(msg.yaw_cdeg / 100.0), msg.speed_mm_s / 1e3,
-                                      math.radians(msg.yaw_rate_cdeg_s / 100.0), now_s)
+                self.pose = PoseState(milli_to_si(msg.time_boot_ms), milli_to_si(msg.x_mm), milli_to_si(msg.y_mm),
+                                      cdeg_to_rad(msg.yaw_cdeg), milli_to_si(msg.speed_mm_s),
+                                      cdeg_to_rad(msg.yaw_rate_cdeg_s), now_s)
             elif t == "AGNAV_BEHAVIOUR_STATUS":
-                self.behaviour = BehaviourState(msg.time_boot_ms / 1e3, msg.active_layer, msg.reason,
-                                                msg.failsafe_flags, math.radians(msg.steer_cdeg / 100.0),
-                                                msg.speed_mm_s / 1e3, now_s)
+                self.behaviour = BehaviourState(milli_to_si(msg.time_boot_ms), msg.active_layer, msg.reason,
+                                                msg.failsafe_flags, cdeg_to_rad(msg.steer_cdeg),
+                                                milli_to_si(msg.speed_mm_s), now_s)
             elif t == "AGNAV_SONAR_RING":
                 n = 12
-                self.sonar = SonarState(msg.time_boot_ms / 1e3, tuple(r / 1e3 for r in msg.ranges_mm[:n]),
+                self.sonar = SonarState(milli_to_si(msg.time_boot_ms), tuple(milli_to_si(r) for r in msg.ranges_mm[:n]),
                                         tuple(msg.status[:n]), msg.count, msg.seq, now_s)
             elif t == "AGNAV_ENCODER_STATUS":
                 k = max(0, min(4, msg.count_wheels))
-                self.encoders = EncoderState(msg.time_boot_ms / 1e3, tuple(msg.count[:k]),
-                                             tuple(s / 1e3 for s in msg.speed_mm_s[:k]), tuple(msg.errors[:k]),
+                self.encoders = EncoderState(milli_to_si(msg.time_boot_ms), tuple(msg.count[:k]),
+                                             tuple(milli_to_si(s) for s in msg.speed_mm_s[:k]), tuple(msg.errors[:k]),
                                              k, now_s)
             elif t == "HEARTBEAT":
                 self.heartbeat = msg
@@ -215,9 +217,9 @@ class RobotState:
                 rate = self.pose.yaw_rate_rad_s if self.pose else 0.0
                 c, s = math.cos(yaw), math.sin(yaw)
                 vx, vy = msg.vx, -msg.vy
-                self.pose = PoseState(msg.time_boot_ms / 1e3, msg.x, -msg.y, yaw, c * vx + s * vy, rate, now_s)
+                self.pose = PoseState(milli_to_si(msg.time_boot_ms), msg.x, -msg.y, yaw, c * vx + s * vy, rate, now_s)
             elif t == "ATTITUDE":
-                p = self.pose or PoseState(msg.time_boot_ms / 1e3, 0.0, 0.0, 0.0, 0.0, 0.0, now_s)
+                p = self.pose or PoseState(milli_to_si(msg.time_boot_ms), 0.0, 0.0, 0.0, 0.0, 0.0, now_s)
                 self.pose = PoseState(p.time_boot_s, p.x_m, p.y_m, -msg.yaw, p.speed_m_s, -msg.yawspeed, now_s)
 
 

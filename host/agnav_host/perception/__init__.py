@@ -6,7 +6,7 @@ Public surface (modules with a leading underscore may change without notice)::
     RowParams, RowEstimate, ROW_METHODS, row_method_names, detect_rows,
     detect_rows_points, RowEndDetector, fit_line_lsq                              crop rows
     DriveLimits, RowFollower(Params), ProximityFollower(Params), detect_single_row,
-    HeadlandTurn, headland_path, RowNavigator(Params)                             controllers
+    HeadlandTurn, headland_path                                                   controllers
     TiltedMount, GroundParams, GroundObstacles, expected_ground_range_m,
     ground_points, detect_ground_obstacles, terrain_roughness, GroundTracker,
     GroundObstacleMap, scan_with_virtual_obstacles, GroundGuard(Params)           ground
@@ -21,8 +21,6 @@ from ._follow import (
     ProximityFollowerParams,
     RowFollower,
     RowFollowerParams,
-    RowNavigator,
-    RowNavigatorParams,
     SingleRowEstimate,
     detect_single_row,
     headland_path,
@@ -60,7 +58,7 @@ __all__ = [
     "RowParams", "RowEstimate", "ROW_METHODS", "row_method_names", "detect_rows", "detect_rows_points",
     "RowEndDetector", "fit_line_lsq",
     "DriveLimits", "RowFollower", "RowFollowerParams", "ProximityFollower", "ProximityFollowerParams",
-    "SingleRowEstimate", "detect_single_row", "HeadlandTurn", "headland_path", "RowNavigator", "RowNavigatorParams",
+    "SingleRowEstimate", "detect_single_row", "HeadlandTurn", "headland_path",
     "TiltedMount", "GroundParams", "GroundObstacles", "expected_ground_range_m", "ground_points",
     "detect_ground_obstacles", "terrain_roughness", "GroundTracker",
     "GroundObstacleMap", "scan_with_virtual_obstacles", "GroundGuard", "GroundGuardParams",

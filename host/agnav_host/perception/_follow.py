@@ -1,4 +1,5 @@
-"""Row following controllers: centre line between two rows, proximity to one row, headland turns.
+"""Row following controllers: centre line between two rows, proximity to one row, headland turns (the row
+navigator that drives whole fields with them is planning.row_navigator).
 
 Each controller has ``reset()`` and ``step(obs) -> DriveCommand`` (the simulator's ``Controller``
 shape) and reads ``obs.scan``; the laser's pose on the robot is a parameter (``mount``).
@@ -19,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
-from ._rows import ROW_METHODS, RowEndDetector, RowEstimate, RowParams, detect_rows_points
+from ._rows import ROW_METHODS, RowEstimate, RowParams, detect_rows_points
 from ._scan import ScanParams, ScanPoints, points_from_scan
 
 __all__ = [
@@ -32,8 +33,6 @@ __all__ = [
     "ProximityFollower",
     "headland_path",
     "HeadlandTurn",
-    "RowNavigator",
-    "RowNavigatorParams",
 ]
 
 
@@ -122,6 +121,15 @@ class RowFollowerParams:
     process_std_m: float = 0.01  # per sqrt(s)
     process_std_rad: float = 0.05
     min_confidence: float = 0.15
+    # a soft gate: a detection's noise is multiplied by 1 + (de / gate_m)^2 + (dpsi / gate_rad)^2 + (ds / (gate_spacing
+    # s))^2: de, dpsi its distance in lateral offset and heading from the median of the last ``gate_history``
+    # detections (each carried to the robot's present pose by its odometry), ds from the expected row spacing s.
+    # One far off (a weed line, a neighbouring row seen through a gap) hardly moves the filter; what the detections
+    # agree on does, even where the filter is off. inf: no gate (each detection weighed by its confidence alone)
+    gate_m: float = math.inf
+    gate_rad: float = math.inf
+    gate_spacing: float = math.inf
+    gate_history: int = 7
 
     def __post_init__(self) -> None:
         if self.method not in ROW_METHODS:
@@ -147,11 +155,13 @@ class RowFollower:
         p = self.params
         self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
         self.last: RowEstimate | None = None
+        self._seen: list[tuple[float, float, float]] = []  # the gate's history: (row yaw, centre x, centre y)
 
     def reset(self) -> None:
         p = self.params
         self._kf = _TrackFilter(p.process_std_m, p.process_std_rad)
         self.last = None
+        self._seen = []
 
     @property
     def state(self) -> tuple[float, float] | None:
@@ -169,10 +179,33 @@ class RowFollower:
         est = detect_rows_points(pts, p.method, p.rows)
         self.last = est
         if est.confidence >= p.min_confidence:
-            k = 1.0 / max(est.confidence, 0.05)
+            k = self._gate(est, obs.pose) / max(est.confidence, 0.05)
             self._kf.update(est.lateral_offset_m, est.heading_rad if est.heading_observed else None,
                             p.meas_std_m * k, p.meas_std_rad * k)
         return est
+
+    def _gate(self, est: RowEstimate, pose: Pose2D) -> float:
+        """The soft gate's factor on the detection's noise (>= 1; see the parameters)."""
+        p = self.params
+        if not (math.isfinite(p.gate_m) or math.isfinite(p.gate_rad) or math.isfinite(p.gate_spacing)):
+            return 1.0
+        s0 = p.rows.expected_spacing_m
+        k = 1.0 + ((est.row_spacing_m - s0) / (p.gate_spacing * s0)) ** 2
+        # each earlier detection as a centre line in the odometry frame, seen from the present pose
+        row_yaw = pose.yaw_rad - est.heading_rad
+        cx = pose.x_m + math.sin(row_yaw) * est.lateral_offset_m
+        cy = pose.y_m - math.cos(row_yaw) * est.lateral_offset_m
+        if len(self._seen) >= 3:
+            e_now, psi_now = [], []
+            for yaw_i, cx_i, cy_i in self._seen:
+                psi_now.append(norm_angle_rad(pose.yaw_rad - yaw_i))
+                e_now.append(-math.sin(yaw_i) * (pose.x_m - cx_i) + math.cos(yaw_i) * (pose.y_m - cy_i))
+            k += ((est.lateral_offset_m - float(np.median(e_now))) / p.gate_m) ** 2
+            if est.heading_observed:
+                k += (norm_angle_rad(est.heading_rad - float(np.median(psi_now))) / p.gate_rad) ** 2
+        self._seen.append((row_yaw, cx, cy))
+        del self._seen[:-p.gate_history]
+        return k
 
     def step(self, obs: Observation) -> DriveCommand:
         p = self.params
@@ -606,86 +639,3 @@ class HeadlandTurn:
         if self.limits.kinematics == "diff_drive" and lx < 0:  # target behind: turn towards it on the spot
             return self.limits.command(0.0, math.copysign(self.limits.max_yaw_rate_rad_s, ly))
         return self.limits.command(v, v * kappa)
-
-
-@dataclass(frozen=True)
-class RowNavigatorParams:
-    """Follow a row, detect its end, turn on the headland into the next row, and repeat."""
-
-    follower: RowFollowerParams = field(default_factory=RowFollowerParams)
-    first_turn: str = "left"  # side of the first next row; turns then alternate
-    lanes_per_turn: int = 1
-    exit_m: float = 0.9  # drive on this far after the end is reported, to clear the row ends
-    turn_speed_m_s: float = 0.3
-    end_low: float = 0.25
-    end_high: float = 0.5
-    end_scans: int = 3
-
-    def __post_init__(self) -> None:
-        if self.first_turn not in ("left", "right") or self.lanes_per_turn < 1:
-            raise ValueError("RowNavigatorParams: first_turn is 'left' or 'right', lanes_per_turn >= 1")
-
-
-class RowNavigator:
-    """Row following with headland turns: states ``follow`` -> ``exit`` -> ``turn`` -> ``follow``...
-
-    ``phase`` names the state and ``turns`` counts the completed turns. Works for a differential
-    drive (pi turn) and an Ackermann robot (omega turn when the rows are closer than two turning radii)."""
-
-    def __init__(self, params: RowNavigatorParams | None = None) -> None:
-        self.params = params or RowNavigatorParams()
-        p = self.params
-        self.follower = RowFollower(p.follower)
-        self.end = RowEndDetector(p.end_low, p.end_high, p.end_scans, p.end_scans)
-        self.turn = HeadlandTurn(p.follower.limits, p.turn_speed_m_s)
-        self.reset()
-
-    def reset(self) -> None:
-        self.follower.reset()
-        self.end.reset()
-        self.turn.reset()
-        self.phase = "follow"
-        self.turns = 0
-        self._exit_origin: Pose2D | None = None
-        self._row_yaw = 0.0
-        self._lane_origin = Pose2D()
-
-    def step(self, obs: Observation) -> DriveCommand:
-        p = self.params
-        if self.phase == "follow":
-            cmd = self.follower.step(obs)
-            # only a fresh detection counts towards the row's end: a control step without a scan repeats
-            # nothing (the follower keeps its last estimate for other uses)
-            est = self.follower.last if obs.scan is not None else None
-            st = self.follower.state
-            if est is not None and self.end.update(est.fill) and st is not None:
-                e, psi = st
-                self._row_yaw = norm_angle_rad(obs.pose.yaw_rad - psi)
-                # the point on the centre line beside the robot, facing along the row
-                c, s = math.cos(self._row_yaw), math.sin(self._row_yaw)
-                self._lane_origin = Pose2D(obs.pose.x_m + s * e, obs.pose.y_m - c * e, self._row_yaw)
-                self.phase = "exit"
-            return cmd
-        if self.phase == "exit":
-            o = self._lane_origin
-            c, s = math.cos(o.yaw_rad), math.sin(o.yaw_rad)
-            dx, dy = obs.pose.x_m - o.x_m, obs.pose.y_m - o.y_m
-            along, lat = c * dx + s * dy, -s * dx + c * dy
-            if along >= p.exit_m:
-                left = (p.first_turn == "left") == (self.turns % 2 == 0)
-                shift = (1.0 if left else -1.0) * p.lanes_per_turn * self.follower.params.rows.expected_spacing_m
-                self.turn.start(Pose2D(o.x_m + c * along, o.y_m + s * along, o.yaw_rad), shift)
-                self.phase = "turn"
-            else:
-                psi = norm_angle_rad(obs.pose.yaw_rad - o.yaw_rad)
-                fp = self.follower.params
-                return _steer(fp.limits, p.turn_speed_m_s, lat, psi, 0.0, fp.omega_n_rad_s, fp.zeta)
-        if self.phase == "turn":
-            cmd = self.turn.step(obs)
-            if not self.turn.done:
-                return cmd
-            self.turns += 1
-            self.follower.reset()
-            self.end.reset()
-            self.phase = "follow"
-        return self.follower.step(obs)

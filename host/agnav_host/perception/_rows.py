@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..types import FloatArray, LaserScan, Pose2D, ScanXY, norm_angle_arr
+from ..types import FloatArray, LaserScan, Pose2D, ScanXY, norm_angle_rad
 from ._scan import ScanParams, ScanPoints, points_from_scan
 
 __all__ = [
@@ -267,7 +267,7 @@ def _rows_offset(pts: ScanPoints, p: RowParams) -> RowEstimate:
     cs: list[float | None] = []
     ns: list[int] = []
     for sign in (1.0, -1.0):
-        sel = close & (np.abs(norm_angle_arr(bearing - sign * math.pi / 2)) <= half + 1e-9)
+        sel = close & (np.abs(norm_angle_rad(bearing - sign * math.pi / 2)) <= half + 1e-9)
         ns.append(int(sel.sum()))
         cs.append(float(pts.xy[sel, 1].mean()) if ns[-1] >= p.min_points_per_side else None)
     (cl, cr), (nl, nr) = cs, ns

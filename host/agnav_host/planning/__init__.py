@@ -3,7 +3,7 @@ obstacles) -> :class:`~agnav_host.types.DriveCommand`, chosen by name.
 
 Public surface::
 
-    Planner, GoalChecker, DistanceGoalChecker, RobotSpec                      (base)
+    Planner, RobotSpec                                                        (base)
     PlanningError, NoPathFound, DeadlineMissed, InvalidObservation, UnknownPlanner
     make_planner, planner_names, canonical_name, describe, PLANNERS          (registry)
     PathFollower, PathFollowerParams                                          (ref 000 path following)
@@ -15,8 +15,6 @@ The benchmark is :mod:`agnav_host.planning.bench`; docs in docs/planning.md.
 
 from .base import (
     DeadlineMissed,
-    DistanceGoalChecker,
-    GoalChecker,
     InvalidObservation,
     NoPathFound,
     Planner,
@@ -28,7 +26,7 @@ from .follow_path import PathFollower, PathFollowerParams
 from .registry import PLANNERS, canonical_name, describe, make_planner, planner_names
 
 __all__ = [
-    "Planner", "GoalChecker", "DistanceGoalChecker", "RobotSpec", "PlanningError", "NoPathFound", "DeadlineMissed",
+    "Planner", "RobotSpec", "PlanningError", "NoPathFound", "DeadlineMissed",
     "InvalidObservation", "UnknownPlanner", "make_planner", "planner_names", "canonical_name", "describe", "PLANNERS",
     "PathFollower", "PathFollowerParams",
 ]

@@ -40,7 +40,8 @@ from enum import IntEnum
 import numpy as np
 
 from ..types import DriveCommand, Observation
-from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view, norm_angle_rad_arr
+from ..types import norm_angle_rad
+from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
 
 __all__ = ["ApfParams", "ApfPlanner", "apf_linear", "apf_angular", "SafetyState"]
 
@@ -159,7 +160,7 @@ class ApfPlanner:
             ok = free >= need - 1e-6
             if not ok.any():
                 ok = free >= 0.8 * float(free.max())
-            rel = norm_angle_rad_arr(cand - alpha)
+            rel = norm_angle_rad(cand - alpha)
             cost = np.abs(rel)
             if self._contour != 0.0:  # keep the side being contoured while it has a way
                 same = ok & ((np.sign(rel) == self._contour) | (rel == 0.0))

@@ -30,8 +30,6 @@ from ..types import DriveCommand, FloatArray, Goal, Observation, ScanXY, norm_an
 
 __all__ = [
     "Planner",
-    "GoalChecker",
-    "DistanceGoalChecker",
     "RobotSpec",
     "PlanningError",
     "NoPathFound",
@@ -85,18 +83,6 @@ class Planner(Protocol):
     def reset(self) -> None: ...
 
     def step(self, obs: Observation) -> DriveCommand: ...
-
-
-class GoalChecker(Protocol):
-    def reached(self, obs: Observation) -> bool: ...
-
-
-@dataclass(frozen=True)
-class DistanceGoalChecker:
-    """Reached when the reference point is within the goal's own ``tolerance_m``."""
-
-    def reached(self, obs: Observation) -> bool:
-        return math.hypot(obs.goal.x_m - obs.pose.x_m, obs.goal.y_m - obs.pose.y_m) <= obs.goal.tolerance_m
 
 
 # ---- robot description -------------------------------------------------------------------------
@@ -369,7 +355,7 @@ def local_view(obs: Observation, spec: RobotSpec, use_laser: bool = True, use_so
         dyaw = norm_angle_rad(sp.yaw_rad - obs.pose.yaw_rad)
         ok = np.isfinite(r) & (r > 0.0)
         if not ok.all():
-            no_ret = norm_angle_rad_arr(a[~ok] + dyaw)
+            no_ret = norm_angle_rad(a[~ok] + dyaw)
         rr = r[ok]
         if dyaw == 0.0:
             px, py = rr * ca[ok], rr * sa[ok]
@@ -400,11 +386,6 @@ def local_view(obs: Observation, spec: RobotSpec, use_laser: bool = True, use_so
     bear = np.arctan2(xy[:, 1], xy[:, 0])
     order = np.argsort(bear, kind="stable")
     return LocalView(xy[order], rng_m[order], bear[order], no_ret)
-
-
-def norm_angle_rad_arr(a: FloatArray) -> FloatArray:
-    """Element-wise wrap to [-pi, pi), rad."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_width_m: float, horizon_m: float) -> FloatArray:

@@ -1,8 +1,10 @@
 """The planner benchmark: the reference experiments as simulator runs, in parallel, with tables and plots.
 
-``agnav bench planners --out DIR`` (or ``bench/bench_planners.py``) runs :data:`SUITE` on a process
-pool, shows a progress bar on stderr and writes to DIR:
+``agnav bench planners --out DIR`` (or ``bench/bench_planners.py``) runs :data:`SUITE` as a sweep (local
+processes or Ray, :mod:`agnav_host.sweep`), shows a progress bar on stderr and writes to DIR:
 
+``runs.jsonl``    one JSON row per run as it ends (beside it ``timings.jsonl`` and ``arrays/``): a killed run
+                  resumes where it stopped
 ``runs.csv``      one row per run (scenario, planner, seed, metrics, compute time per step)
 ``summary.csv``   one row per scenario and planner (success rate, means, medians)
 ``planners.md``   the summary as markdown tables plus the reference figures next to ours
@@ -15,9 +17,7 @@ from __future__ import annotations
 
 import csv
 import math
-import multiprocessing as mp
 import os
-import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -113,25 +113,23 @@ def workers(processes: int | None, n_jobs: int) -> int:
 
 
 def run_suite(suite: Iterable[BenchCase] = SUITE, processes: int | None = None,
-              progress: Callable[[int, int, dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """Run every job of ``suite`` on :func:`workers` processes; results in job order."""
-    jobs = jobs_of(suite)
-    # longest jobs first so the pool ends together
-    order = sorted(range(len(jobs)), key=lambda i: (jobs[i][0] != "greenhouse_cycles", jobs[i][1] != "subsumption"))
-    n = workers(processes, len(jobs))
-    out: list[dict[str, Any] | None] = [None] * len(jobs)
-    ctx = mp.get_context("fork") if sys.platform != "win32" else mp.get_context()
-    with ctx.Pool(n) as pool:
-        for k, res in enumerate(pool.imap_unordered(_indexed, [(i, jobs[i]) for i in order])):
-            i, r = res
-            out[i] = r
-            if progress is not None:
-                progress(k + 1, len(jobs), r)
-    return [r for r in out if r is not None]
+              progress: Callable[[int, int, dict[str, Any]], None] | None = None, backend: Any = None,
+              store: Any = None) -> list[dict[str, Any]]:
+    """Run every job of ``suite`` as a sweep (:mod:`agnav_host.sweep`) on ``backend`` (default: :func:`workers`
+    local processes), the rows kept in ``store`` (a :class:`~agnav_host.sweep.RunStore`; default: in memory,
+    so nothing resumes); results in job order."""
+    from ..sweep import LocalBackend, RunStore, run_sweep
+    from ..sweep.planners import results, tasks
 
-
-def _indexed(arg: tuple[int, tuple[str, str, int]]) -> tuple[int, dict[str, Any]]:
-    return arg[0], run_case(arg[1])
+    tasks_ = tasks(suite)
+    # longest jobs first so the workers end together
+    order = sorted(range(len(tasks_)), key=lambda i: (tasks_[i].spec["scenario"] != "greenhouse_cycles",
+                                                      tasks_[i].spec["planner"] != "subsumption"))
+    store = store if store is not None else RunStore(None)
+    backend = backend if backend is not None else LocalBackend(workers(processes, len(tasks_)))
+    show = None if progress is None else (lambda p: progress(p.done, p.total, p.row))
+    rows = run_sweep(tasks_, backend, store, show, order)
+    return results(rows, store)
 
 
 RUN_FIELDS = ("scenario", "planner", "seed", "end", "success", "time_s", "path_length_m", "bending_energy", "min_clearance_m",

@@ -104,16 +104,6 @@ class FlbPlanner:
         self._last_xy: tuple[float, float] | None = None
         self._scans = 0
 
-    def sector_clearances(self, obs: Observation) -> tuple[float, float, float]:
-        """Normalised clearances (left, front, right): (sector min range - radius) / radius."""
-        p, r = self.params, self.spec.radius_m
-        v = local_view(obs, self.spec)
-        h = p.horizon_m
-        d_r = v.sector_min(-math.pi / 2, -p.sector_rad, h)
-        d_f = v.sector_min(-p.sector_rad, p.sector_rad, h)
-        d_l = v.sector_min(p.sector_rad, math.pi / 2, h)
-        return ((d_l - r) / r, (d_f - r) / r, (d_r - r) / r)
-
     def step(self, obs: Observation) -> DriveCommand:
         p, spec = self.params, self.spec
         view = local_view(obs, spec)

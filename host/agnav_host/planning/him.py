@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..types import DriveCommand, FloatArray, Observation, norm_angle_arr, norm_angle_rad
+from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
 from .base import LocalView, RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
 
 __all__ = ["HimParams", "HimPlanner", "escape_points"]
@@ -147,7 +147,7 @@ class HimPlanner:
                 mx = c * (sp.x_m - obs.pose.x_m) + s * (sp.y_m - obs.pose.y_m) - off
                 my = -s * (sp.x_m - obs.pose.x_m) + c * (sp.y_m - obs.pose.y_m)
                 dyaw = norm_angle_rad(sp.yaw_rad - obs.pose.yaw_rad)
-                a = norm_angle_arr(np.arctan2(ly - my, lx - mx) - dyaw)
+                a = norm_angle_rad(np.arctan2(ly - my, lx - mx) - dyaw)
                 # outside the beams' span, measured from the first beam in the laser's own sense of turn
                 # (any start angle: a full-circle laser's 0..2 pi too)
                 span = abs(scan.angle_increment_rad) * (len(scan.ranges_m) - 1)
@@ -292,7 +292,7 @@ class HimPlanner:
                 # out is the direction the body can move furthest, returns behind it not blocking)
                 dirs = np.linspace(-math.pi, math.pi, 72, endpoint=False)
                 free = departing_free_m(view.xy, dirs, r + 0.03, 1.0)
-                k = int(np.argmax(free - 0.3 * np.abs(norm_angle_arr(dirs - g_rel))))
+                k = int(np.argmax(free - 0.3 * np.abs(norm_angle_rad(dirs - g_rel))))
                 a = float(dirs[k])
                 if abs(a) > math.radians(10.0):
                     return drive_command(spec, 0.0, math.copysign(spec.max_yaw_rate_rad_s * 0.6, a), view, obs)

@@ -56,7 +56,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..types import DriveCommand, Observation, norm_angle_arr, norm_angle_rad
+from ..types import DriveCommand, Observation, norm_angle_rad
 from .base import InvalidObservation, RobotSpec, goal_in_robot_frame
 
 __all__ = ["SubsumptionParams", "SubsumptionPlanner", "Layer", "Reason"]
@@ -149,7 +149,7 @@ class SubsumptionPlanner:
     def __init__(self, spec: RobotSpec, params: SubsumptionParams | None = None) -> None:
         self.spec = spec
         self.params = p = params or SubsumptionParams()
-        b = norm_angle_arr(spec.sonar_spacing_rad * np.arange(spec.sonar_count))
+        b = norm_angle_rad(spec.sonar_spacing_rad * np.arange(spec.sonar_count))
         self.bearing = b
         self.cos = np.where(np.cos(b) > 0, np.cos(b), 0.0)
         ab = np.abs(b)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..types import DriveCommand, FloatArray, Observation
+from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
 from .base import RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
 
 __all__ = ["VfhParams", "VfhPlanner", "polar_histogram", "find_valleys", "choose_direction"]
@@ -66,7 +66,7 @@ def polar_histogram(xy: FloatArray, n: int, window_m: float, enlarge_m: float, s
         gamma = np.arcsin(np.minimum(1.0, enlarge_m / np.maximum(d, 1e-6)))
         width = 2.0 * math.pi / n
         centres = -math.pi + width * (np.arange(n) + 0.5)
-        diff = np.abs((centres[None, :] - b[:, None] + math.pi) % (2.0 * math.pi) - math.pi)
+        diff = np.abs(norm_angle_rad(centres[None, :] - b[:, None]))
         cover = diff <= (gamma[:, None] + 0.5 * width)
         h = np.max(np.where(cover, mag[:, None], 0.0), axis=0)
     if smooth > 0:
@@ -102,7 +102,7 @@ def find_valleys(free: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _ang_dist(a: float, b: float) -> float:
-    return abs((a - b + math.pi) % (2.0 * math.pi) - math.pi)
+    return abs(norm_angle_rad(a - b))
 
 
 def choose_direction(valleys: list[tuple[int, int]], n: int, goal_rad: float, prev_rad: float, p: VfhParams) -> float | None:

@@ -1,17 +1,18 @@
 """Host side of the link: the MAVLink endpoint the host planner uses (sim or real radio alike).
 
 It only turns calls into bytes and bytes into state: :meth:`HostEndpoint.feed` takes what the
-radio delivered, :meth:`HostEndpoint.take_tx` returns what to put on the radio. Units on the
-wire are the firmware's (cdeg, mm/s, mm); helpers take SI.
+radio delivered (decoded by pymavlink's parser of the dialect), :meth:`HostEndpoint.take_tx` returns
+what to put on the radio. Units on the wire are the firmware's (cdeg, mm/s, mm); helpers take SI
+(:mod:`agnav_host.units`).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from ..protocol import dialect, new_codec
+from ..units import cdeg_to_rad, milli_to_si, rad_to_cdeg, si_to_milli
 
 __all__ = ["HostEndpoint", "Odometry", "BehaviourStatus", "SonarRingFrame"]
 
@@ -49,80 +50,6 @@ class SonarRingFrame:
     seq: int
 
 
-class LeanMessage:
-    """A decoded message of the lean path: ``get_type()`` and the fields as attributes (the
-    values pymavlink's decoder gives: ints, floats, lists for arrays)."""
-
-    __slots__ = ("_type", "__dict__")
-
-    def __init__(self, msg_type: str, fields: dict[str, Any]) -> None:
-        self._type = msg_type
-        self.__dict__ = fields
-
-    def get_type(self) -> str:
-        return self._type
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"mavpackettype": self._type, **self.__dict__}
-
-    def __repr__(self) -> str:
-        return f"{self._type} {self.__dict__}"
-
-
-# pymavlink's objects are kept for these (callers may use their headers); text fields need
-# pymavlink's string handling: both never take the lean path
-_KEEP_PYMAVLINK = frozenset({"COMMAND_ACK", "AGNAV_CALIB_ACK", "PARAM_VALUE", "STATUSTEXT"})
-
-
-def _lean_decoders(d: Any) -> dict[int, Callable[[bytes, int, int], LeanMessage | None]]:
-    """msg id -> decoder(buf, start, end) of one unsigned MAVLink 2 frame, for every message of
-    the dialect without text fields that the endpoint does not keep as pymavlink objects. The
-    decoder returns None on a CRC mismatch (pymavlink then reports the frame as bad data)."""
-    try:
-        from fastcrc.crc16 import mcrf4xx  # what pymavlink's x25crc uses when installed
-
-        def crc16(b: bytes) -> int:
-            return mcrf4xx(b, 0xFFFF)
-    except ImportError:  # pymavlink's own implementation
-        def crc16(b: bytes) -> int:
-            return int(d.x25crc(b).crc)
-    out: dict[int, Callable[[bytes, int, int], LeanMessage | None]] = {}
-    for msgid, cls in d.mavlink_map.items():
-        if cls.msgname in _KEEP_PYMAVLINK or "char" in cls.fieldtypes:
-            continue
-        out[msgid] = _make_decoder(cls, crc16)
-    return out
-
-
-def _make_decoder(cls: Any, crc16: Callable[[bytes], int]) -> Callable[[bytes, int, int], LeanMessage | None]:
-    unpack = cls.unpacker.unpack
-    size = cls.unpacker.size
-    extra = bytes([cls.crc_extra])
-    name = cls.msgname
-    names = tuple(cls.fieldnames)
-    lens = cls.lengths
-    # pymavlink's decode(): wire tuple -> field values in declaration order, arrays as lists
-    picks = []
-    for order in cls.orders:
-        tip = sum(lens[:order])
-        picks.append((tip, lens[order]))
-    plain = all(n == 1 for _, n in picks)
-    idx = tuple(tip for tip, _ in picks)
-
-    def decode(buf: bytes, i: int, end: int) -> LeanMessage | None:
-        if crc16(buf[i + 1:end - 2] + extra) != buf[end - 2] | buf[end - 1] << 8:
-            return None
-        payload = buf[i + 10:end - 2]
-        if len(payload) < size:
-            payload += bytes(size - len(payload))  # MAVLink 2 drops trailing zero bytes
-        t = unpack(payload[:size])
-        if plain:
-            return LeanMessage(name, dict(zip(names, [t[k] for k in idx])))
-        return LeanMessage(name, dict(zip(names, [t[tip] if n == 1 else list(t[tip:tip + n]) for tip, n in picks])))
-
-    return decode
-
-
 @dataclass
 class HostEndpoint:
     """MAVLink endpoint of the host (system 255, component 190 by default)."""
@@ -151,7 +78,6 @@ class HostEndpoint:
         self._d = dialect()
         self._tx = bytearray()
         self._seq = 0
-        self._lean = _lean_decoders(self._d)
 
     # ---- sending ---------------------------------------------------------------------------------
     def _send(self, msg: Any) -> None:
@@ -176,7 +102,7 @@ class HostEndpoint:
                                                           d.AGNAV_DRIVE_PHYSICAL, self._seq))
 
     def setpoint_si(self, steer_rad: float, speed_m_s: float) -> None:
-        self.setpoint(math.degrees(steer_rad) * 100.0, speed_m_s * 1000.0)
+        self.setpoint(rad_to_cdeg(steer_rad), si_to_milli(speed_m_s))
 
     def command_long(self, command: int, *params: float) -> None:
         p = [float(x) for x in params] + [0.0] * (7 - len(params))
@@ -206,55 +132,22 @@ class HostEndpoint:
 
     # ---- receiving -------------------------------------------------------------------------------------
     def feed(self, t_us: int, data: bytes) -> list[Any]:
-        """Decode what the radio delivered and update the state; returns the messages.
-
-        Unsigned MAVLink 2 frames of the telemetry the endpoint only reads (odometry, status, sonar,
-        heartbeat, ...) are decoded here, as pymavlink decodes them (CRC with CRC_EXTRA, trailing
-        zero bytes restored) but returned as light :class:`LeanMessage` objects; every other frame
-        (acknowledgements, parameters, text, MAVLink 1, signed, corrupt or stray bytes, a partial
-        frame) goes to pymavlink as before."""
+        """Decode what the radio delivered (pymavlink's parser of the dialect: a frame split over two
+        deliveries is completed by the next one; bad bytes come back as its bad-data messages) and update
+        the state; returns the messages."""
         if not data:
             return []
-        mav = self._mav
-        if mav.buf_len() > 0:  # pymavlink holds part of a frame: it continues the stream
-            msgs = mav.parse_buffer(data) or []
-            for m in msgs:
-                self._handle(t_us, m)
-            return msgs
-        out: list[Any] = []
-        lean = self._lean
-        n = len(data)
-        i = 0
-        while i < n:
-            if data[i] != 0xFD or n - i < 12 or data[i + 2] != 0:
-                break  # not a complete unsigned MAVLink 2 header here: pymavlink from this byte on
-            end = i + 12 + data[i + 1]
-            if end > n:
-                break
-            dec = lean.get(data[i + 7] | data[i + 8] << 8 | data[i + 9] << 16)
-            m = dec(data, i, end) if dec is not None else None
-            if m is None:  # a message kept as pymavlink's object, or a bad CRC: pymavlink decides
-                ms = mav.parse_buffer(data[i:end]) or []
-                for x in ms:
-                    self._handle(t_us, x)
-                out += ms
-            else:
-                self._handle(t_us, m)
-                out.append(m)
-            i = end
-        if i < n:
-            ms = mav.parse_buffer(data[i:]) or []
-            for x in ms:
-                self._handle(t_us, x)
-            out += ms
-        return out
+        msgs = self._mav.parse_buffer(data) or []
+        for m in msgs:
+            self._handle(t_us, m)
+        return msgs
 
     def _handle(self, t_us: int, m: Any) -> None:
         kind = m.get_type()
         self.rx_counts[kind] = self.rx_counts.get(kind, 0) + 1
         if kind == "AGNAV_ODOMETRY":
-            o = Odometry(t_us, m.time_boot_ms, m.x_mm * 1e-3, m.y_mm * 1e-3, math.radians(m.yaw_cdeg / 100.0),
-                         m.speed_mm_s * 1e-3, math.radians(m.yaw_rate_cdeg_s / 100.0))
+            o = Odometry(t_us, m.time_boot_ms, milli_to_si(m.x_mm), milli_to_si(m.y_mm), cdeg_to_rad(m.yaw_cdeg),
+                         milli_to_si(m.speed_mm_s), cdeg_to_rad(m.yaw_rate_cdeg_s))
             self.odometry = o
             if self.keep_history:
                 self.odometry_log.append(o)

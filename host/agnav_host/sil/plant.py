@@ -31,6 +31,7 @@ from ..sim._raycast import RayBundle
 from ..sim.sensors import EncoderSpec, SonarRing, WheelEncoder
 from ..sim.world import World
 from ..types import DriveCommand, Pose2D, norm_angle_rad
+from ..units import si_to_milli
 from ._kernels import kernels
 from .binding import Firmware, Outputs
 
@@ -223,12 +224,13 @@ class Plant:
             # MAX_STEER_CDEG 4500: the tightest arc the steering interface allows a differential
             # robot (radius = track / tan 45 deg), as it cannot be asked to turn on the spot.
             out.update(DRIVE_KIND=1, ENC_COUNT=2, ENC_MODE=0, ENC_NM_PER_CNT=int(round(nm)),
-                       TRACK_MM=int(round(p.track_m * 1000)), MAX_STEER_CDEG=4500)
+                       TRACK_MM=int(round(si_to_milli(p.track_m))), MAX_STEER_CDEG=4500)
         else:
             p = self.robot.params
             nm = 2.0 * math.pi * p.wheel_radius_m / self.encoders[0].spec.counts_per_rev * 1e9
             out.update(DRIVE_KIND=0, ENC_COUNT=1, ENC_MODE=1, ENC_NM_PER_CNT=int(round(nm)),
-                       TRACK_MM=int(round(p.track_m * 1000)), WHEELBASE_MM=int(round(p.wheelbase_m * 1000)))
+                       TRACK_MM=int(round(si_to_milli(p.track_m))),
+                       WHEELBASE_MM=int(round(si_to_milli(p.wheelbase_m))))
         return out
 
     def calibration_uploads(self) -> list[tuple[int, list[int], list[int], int]]:
@@ -239,7 +241,7 @@ class Plant:
         out = []
         for tid, t in ((CALIB_SPEED_LEFT, self.true_left), (CALIB_SPEED_RIGHT, self.true_right)):
             pwm = [int(round(x)) for x in t.pos_pwm]
-            val = [int(round(v * 1000)) for v in t.pos_value]
+            val = [int(round(si_to_milli(v))) for v in t.pos_value]
             out.append((tid, pwm, val, int(t.neutral_pwm)))
         return out
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..sim.scenario import Scenario
+from ..types import norm_angle_rad
 
 __all__ = ["RobotPathRun", "run_robot_path", "timed_errors", "row_distance_of"]
 
@@ -161,7 +162,7 @@ def timed_errors(r: RobotPathRun, sc: Scenario) -> dict[str, float | None]:
         return {"arrival_error_s": None, "final_error_m": None, "heading_error_deg": None}
     end = r.truth[-1]
     pos = math.hypot(end[1] - g.x_m, end[2] - g.y_m)
-    hdg = None if g.yaw_rad is None else abs(math.degrees((end[3] - g.yaw_rad + math.pi) % (2 * math.pi) - math.pi))
+    hdg = None if g.yaw_rad is None else abs(math.degrees(norm_angle_rad(end[3] - g.yaw_rad)))
     arr = r.truth_info.get("arrival_sim_s")
     start = r.run_start_sim_s
     ate = None if arr is None or start is None or g.arrival_s is None else float(arr) - start - g.arrival_s

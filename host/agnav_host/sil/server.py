@@ -421,7 +421,7 @@ def _write_truth(opt: ServeOptions, sc: Scenario, truth: list[tuple[float, ...]]
     arr[:, 0] -= t0_s
     m = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6], (last.x_m, last.y_m),
                            last.yaw_rad, None, ref.reason == "arrived",
-                           None if ref.arrival_s is None else ref.arrival_s - t0_s)
+                           None if ref.arrival_s is None else ref.arrival_s - t0_s, field=ref.field_score(t0_s))
     write_atomic(out / "summary.json", json.dumps(m.to_dict(), indent=2) + "\n")
     info = {"scenario": sc.name, "seed": opt.seed, "end_reason": ref.reason,
             "arrival_sim_s": ref.arrival_s, "serve_start_sim_s": t0_s, "speedup": opt.speedup,

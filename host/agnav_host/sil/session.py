@@ -438,7 +438,7 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
         last = sc.goals[-1]
         metrics = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6],
                                      (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, referee.reason == "arrived",
-                                     referee.arrival_s)
+                                     referee.arrival_s, field=referee.field_score())
         run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason, scene=sc)
         status = [(st.t_us * 1e-6, st.time_boot_ms, st.layer, st.reason, st.failsafe_flags, st.steer_cdeg, st.speed_mm_s)
                   for st in s.host.status_log]

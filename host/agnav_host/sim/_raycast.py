@@ -17,13 +17,9 @@ import math
 
 import numpy as np
 
-from ..types import Circles, FloatArray, Segments
+from ..types import Circles, FloatArray, Segments, norm_angle_rad
 
 TWO_PI = 2.0 * math.pi
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return (a + math.pi) % TWO_PI - math.pi
 
 
 def _beam_pairs(start_rel: FloatArray, width: FloatArray, rel: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -114,9 +110,9 @@ def cast_rays_at(
         keep = np.nonzero(dmin2 <= max_range_m * max_range_m)[0]
         if len(keep):
             sx0, sy0, ex, ey = sx0[keep], sy0[keep], ex[keep], ey[keep]
-            a1 = _wrap(np.arctan2(sy0, sx0) - centre_abs)
-            a2 = _wrap(np.arctan2(sy0 + ey, sx0 + ex) - centre_abs)
-            w = _wrap(a2 - a1)
+            a1 = norm_angle_rad(np.arctan2(sy0, sx0) - centre_abs)
+            a2 = norm_angle_rad(np.arctan2(sy0 + ey, sx0 + ex) - centre_abs)
+            w = norm_angle_rad(a2 - a1)
             start = np.where(w >= 0, a1, a2)
             width = np.abs(w)
             # origin on the segment's line between its ends: the segment covers half a turn
@@ -144,7 +140,7 @@ def cast_rays_at(
             inside = d <= r
             half = np.arcsin(np.clip(r / np.where(inside, 1.0, d), 0.0, 1.0))
             half = np.where(inside, math.pi, half)
-            start = _wrap(np.arctan2(cy, cx) - centre_abs - half)
+            start = norm_angle_rad(np.arctan2(cy, cx) - centre_abs - half)
             obj, beam = _beam_pairs(start, 2.0 * half, rel)
             if len(obj):
                 dx = dcos[beam]

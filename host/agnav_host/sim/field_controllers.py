@@ -8,7 +8,7 @@ The field of a scenario (:func:`field_from_meta`):
   ``right``, default ``right``), ``meta.row_half_width_m`` = from the row's centre line to the face the laser sees
   (default 0: the distance is kept to the face itself): the proximity follower;
 * ``meta.first_turn`` (``left`` / ``right``) and ``meta.lanes_per_turn`` (default 1): the row navigator's
-  headland turns.
+  headland turns, for good; a scenario with a ``[field]`` gives it its turn pattern and row spacing instead.
 
 Names and what each needs are in :mod:`agnav_host.planning.registry` (``row-follower``, ``row-navigator``,
 ``proximity``, ``rut-follower``, any controller with ``+ground-guard`` or ``+mover-guard``). A scenario that lacks
@@ -74,9 +74,11 @@ def field_from_meta(sc: Scenario) -> FieldDescription:
     lanes = sc.meta.get("lanes_per_turn", 1)
     if isinstance(lanes, bool) or not isinstance(lanes, int) or not 1 <= lanes <= 20:
         raise FieldControllerError(f"scenario {sc.name!r}: meta.lanes_per_turn must be a whole number 1-20, got {lanes!r}")
+    task = sc.field  # a whole field: the row navigator drives its pattern
     return FieldDescription(row_side=side, row_offset_m=_meta_num(sc, "follow_offset_m", 1.0, 0.05),
                             row_half_width_m=_meta_num(sc, "row_half_width_m", 0.0, 0.0), row_method=method,
-                            first_turn=turn, lanes_per_turn=lanes)
+                            first_turn=turn, lanes_per_turn=lanes, pattern=task.pattern if task is not None else "",
+                            row_spacing_m=task.row_spacing_m if task is not None else 0.75)
 
 
 def scenario_context(sc: Scenario, standin: Any = None, field: FieldDescription | None = None) -> ControllerContext:

@@ -202,7 +202,7 @@ def run_scenario(
     last = sc.goals[-1]
     metrics = RunMetrics.compute(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
-        last.yaw_rad, last.arrival_s, referee.reason == "arrived", referee.arrival_s,
+        last.yaw_rad, last.arrival_s, referee.reason == "arrived", referee.arrival_s, field=referee.field_score(),
     )
     return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times), sc)
 

@@ -240,6 +240,13 @@ class World:
     bounds: tuple[float, float, float, float] = (-10.0, -10.0, 10.0, 10.0)
     # each plant row's design line (k, 2), m: the polyline its plants were laid along before their jitter
     row_lines: list[FloatArray] = field(default_factory=list)
+    # each plant row's stems (k, 2), m, in planting order: the centre of each plant (the mean of its circles, where
+    # a surveyor would mark it), one array per entry of row_lines
+    row_plants: list[FloatArray] = field(default_factory=list)
+    # circle kinds the robot may brush through (a field's ``plant`` and ``weed``): seen by the lasers, left out of
+    # clearance_m, so that touching one is counted by the field's referee rather than ending the run
+    soft_kinds: tuple[str, ...] = ()
+    _solid_cache: tuple[tuple[int, tuple[str, ...], int], Circles] | None = field(default=None, repr=False, compare=False)
     # what each block of segments and circles is (``wall``, ``box``, ``polygon``; ``post``, ``plant``, ``weed``),
     # for drawings: (kind, first index, end index), one entry per add_segments / add_circles call
     segment_kinds: list[tuple[str, int, int]] = field(default_factory=list)
@@ -279,8 +286,26 @@ class World:
         )
 
     def clearance_m(self, x_m: FloatArray | float, y_m: FloatArray | float, t_s: float = 0.0) -> FloatArray:
-        """Distance from point(s) to the nearest obstacle boundary, m (negative inside a circle)."""
-        return distance_to_objects(np.asarray(x_m), np.asarray(y_m), self.segments, self.circles_at(t_s))
+        """Distance from point(s) to the nearest obstacle boundary, m (negative inside a circle); circles of the
+        ``soft_kinds`` do not count."""
+        circ = self.circles_at(t_s)
+        if self.soft_kinds:
+            solid = self._solid_static()
+            circ = np.vstack((solid, circ[len(self.circles):])) if len(circ) > len(self.circles) else solid
+        return distance_to_objects(np.asarray(x_m), np.asarray(y_m), self.segments, circ)
+
+    def _solid_static(self) -> Circles:
+        """The static circles that are not of a soft kind (cached until circles or kinds change)."""
+        key = (len(self.circles), self.soft_kinds, len(self.circle_kinds))
+        cached = self._solid_cache
+        if cached is None or cached[0] != key:
+            keep = np.ones(len(self.circles), dtype=bool)
+            for kind, a, b in self.circle_kinds:
+                if kind in self.soft_kinds:
+                    keep[a:b] = False
+            cached = (key, self.circles[keep])
+            self._solid_cache = cached
+        return cached[1]
 
     def ground_height_m(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
         """Ground height z (m) at points; 0 is the nominal ground plane. Features add up."""

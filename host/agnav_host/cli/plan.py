@@ -4,8 +4,11 @@
 
 Poses are ``X,Y,HEADING_DEG`` in m and deg (negative numbers work: ``--goal -3,5,90``). Limits default
 to the ref-003 RC car (wheelbase 174 mm, steering <= 20 deg commanded and 17 deg planned, speed 0 or
-43.5-200 cm/s, 1 m/s^2). Exit code 0 when the plan meets the time, 3 when it does not (the output then
-gives the reason and the earliest feasible arrival, or says why no path fits), 2 for a bad option value.
+43.5-200 cm/s, 1 m/s^2, servo steering rate 200 deg/s, no reverse). The path is the ref-003 polynomial
+where it fits, else a continuous-curvature (clothoid), Dubins or, with ``--reverse-speed``, Reeds-Shepp
+path (``path_type``; ``reverse_m`` is the length driven backwards). Exit code 0 when the plan meets the time,
+3 when it does not (the output then gives the reason and the earliest feasible arrival), 2 for a bad
+option value or a goal no path reaches (the reason is printed).
 
 ``--samples N`` prints N states evenly spaced in time from the start to the moment the car is at rest on
 the goal; the plan's *arrival* (``duration_s``) is a fraction of a second earlier, when the final stop
@@ -19,8 +22,9 @@ import json
 import math
 import sys
 
-from ..cli import finite_float, int_in, nonneg_float, positive_float, subcommand, up_to_a_day
-from .timed import TimedLimits
+from ..planning.timed import TimedLimits
+from .argtypes import finite_float, int_in, nonneg_float, positive_float, up_to_a_day
+from .registry import subcommand
 
 __all__: list[str] = []
 
@@ -41,7 +45,7 @@ def _pose(text: str) -> tuple[float, float, float]:
 
 
 #: Largest |x|, |y| of a pose `plan` takes, m: a field robot's task lies well within it (1e300 printed
-#: 300-digit figures); its arrival time is at most a day (cli.up_to_a_day)
+#: 300-digit figures); its arrival time is at most a day (argtypes.up_to_a_day)
 MAX_COORD_M = 1e5
 
 
@@ -77,6 +81,9 @@ _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
                             "help": f"bottom of the speed band, m/s (default {_DEF.v_min_m_s:g})"}),
         (("--accel",), {"type": positive_float, "default": _DEF.accel_m_s2, "metavar": "M_S2",
                         "help": f"acceleration limit, m/s^2, > 0 (default {_DEF.accel_m_s2:g})"}),
+        (("--reverse-speed",), {"type": nonneg_float, "default": 0.0, "metavar": "M_S",
+                                "help": "top reverse speed, m/s: the reverse side of the speed calibration; above "
+                                        "--min-speed allows Reeds-Shepp paths (default 0: no reverse, as the ref-003 car)"}),
         (("--samples",), {"type": int_in(2, MAX_SAMPLES), "default": None, "metavar": "N",
                           "help": f"also print N >= 2 states, at most {MAX_SAMPLES} (t s, x m, y m, yaw deg, speed m/s, "
                                   "steering deg) evenly spaced from the start to the car at rest on the goal (default: "
@@ -87,7 +94,7 @@ _PLAN_STEER_DEG = math.degrees(_DEF.plan_steer_rad)
 def _cmd_plan(ns: argparse.Namespace) -> int:
     import numpy as np
 
-    from .timed import BoundaryState, plan_timed
+    from ..planning.timed import BoundaryState, plan_timed
 
     for opt, val, lim_deg in (("--start-steer-deg", ns.start_steer_deg, _MAX_STEER_DEG),
                               ("--goal-steer-deg", ns.goal_steer_deg, _PLAN_STEER_DEG)):
@@ -98,7 +105,8 @@ def _cmd_plan(ns: argparse.Namespace) -> int:
         print(f"agnav plan: --start-speed {ns.start_speed:g} m/s is above --max-speed {ns.max_speed:g} m/s", file=sys.stderr)
         return 2
     try:
-        lim = TimedLimits(v_min_m_s=ns.min_speed, v_max_m_s=ns.max_speed, accel_m_s2=ns.accel)
+        lim = TimedLimits(v_min_m_s=ns.min_speed, v_max_m_s=ns.max_speed, accel_m_s2=ns.accel,
+                          reverse_v_max_m_s=ns.reverse_speed)
     except ValueError as e:
         print(f"agnav plan: {e}", file=sys.stderr)
         return 2
@@ -106,10 +114,10 @@ def _cmd_plan(ns: argparse.Namespace) -> int:
     gx, gy, gh = ns.goal
     start = BoundaryState(sx, sy, math.radians(sh), math.radians(ns.start_steer_deg), ns.start_speed)
     goal = BoundaryState(gx, gy, math.radians(gh), math.radians(ns.goal_steer_deg), 0.0)
-    if math.hypot(gx - sx, gy - sy) < 1e-6:
-        print("agnav plan: start and goal positions coincide", file=sys.stderr)
-        return 2
     plan = plan_timed(start, goal, 0.0, ns.arrive_in, lim)
+    if plan.path.length_m <= 0.0:
+        print(f"agnav plan: the goal cannot be reached: {plan.reason.removeprefix('no path: ')}", file=sys.stderr)
+        return 2
     out = plan.summary()
     out["rest_s"] = round(plan.profile.duration_s, 3)  # at rest on the goal (arrival = within 5 cm, earlier)
     if ns.samples is not None and plan.path.length_m > 0:
@@ -123,6 +131,7 @@ def _cmd_plan(ns: argparse.Namespace) -> int:
     else:
         verdict = "feasible" if plan.feasible else "NOT feasible"
         print(f"{verdict}: {plan.reason}")
+        print(f"  path type {out['path_type']}, reverse {out['reverse_m']:.2f} m")
         if plan.path.length_m > 0:
             print(f"  path {out['path_length_m']:.2f} m, duration {out['duration_s']:.2f} s, cruise {out['cruise_speed_mps']:.3f} m/s, "
                   f"max speed {out['max_speed_mps']:.3f} m/s, max steering {out['max_steering_deg']:.1f} deg, "

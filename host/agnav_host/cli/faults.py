@@ -1,4 +1,4 @@
-"""``agnav faults``: run the fault-injection suite and print the table."""
+"""``agnav faults``: run the fault-injection suite (:mod:`agnav_host.faults`) and print the table."""
 
 from __future__ import annotations
 
@@ -6,14 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import subcommand, unwritable_file
-
-
-def _progress(i: int, n: int, name: str) -> None:
-    w = 30
-    f = int(w * i / n) if n else w
-    end = "\n" if i >= n else ""
-    print(f"\r[{'#' * f}{'.' * (w - f)}] {i}/{n} {name:<56.56}", end=end, file=sys.stderr, flush=True)
+from .outputs import unwritable_file
+from .progress import bar_line
+from .registry import subcommand
 
 
 @subcommand(
@@ -30,7 +25,7 @@ def _progress(i: int, n: int, name: str) -> None:
     ],
 )
 def _cmd_faults(ns: argparse.Namespace) -> int:
-    from . import all_cases, format_table, run_cases
+    from ..faults import all_cases, format_table, run_cases
 
     cases = all_cases()
     if ns.only:
@@ -48,7 +43,7 @@ def _cmd_faults(ns: argparse.Namespace) -> int:
         if why:
             print(f"agnav faults: --markdown {ns.markdown}: cannot write there: {why}", file=sys.stderr)
             return 2
-    rows = run_cases(cases, None if ns.quiet else _progress)
+    rows = run_cases(cases, None if ns.quiet else bar_line(56))
     print(format_table(rows, markdown=False))
     if ns.markdown:
         try:

@@ -9,27 +9,18 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..cli import finite_float, parse_goal, positive_float, subcommand
-from .commands import (
-    _LINK_ARGS,
-    OutputError,
-    _config,
-    _err,
-    _FirmwareGoal,
-    _guard,
-    _open,
-    _plain,
-    _status_line,
-    _stats_line,
-    _tlog_path,
-    check_output,
-)
+from ..units import cdeg_to_rad, milli_to_si
+from .argtypes import finite_float, parse_goal, positive_float
+from .link import _LINK_ARGS, _config, _err, _guard, _open, _tlog_path
+from .outputs import OutputError, check_output, clear_earlier_outputs, unusable_out_dir
+from .registry import subcommand
 
 __all__ = ["laser_feeds_from", "mount_from_url", "robot_spec_from", "field_from"]
 
@@ -38,6 +29,68 @@ _sleep = time.sleep  # the run's pacing (tests replace it to inject Ctrl-C)
 #: What `agnav run --out DIR` writes (the files of an earlier run there are removed first).
 RUN_OUTPUTS = ("summary.json", "run_info.json", "trajectory.csv", "trajectory.png", "recording.rrd", "laser.alog",
                "link.tlog")
+
+
+class _FirmwareGoal:
+    """A goal for the firmware's move-to-goal layer, and when it counts as reached.
+
+    The layer reports GOAL_REACHED (reason 14) until it gets a new goal, and the goal frame is not
+    acknowledged: a status from before the goal arrived, or a goal lost on the radio, would read as
+    "reached" at once. So GOAL_REACHED counts only when received after the goal was sent and either
+    the layer has been seen seeking this goal since, or the odometry pose is within the robot's own
+    GOAL_TOL_MM of it (a goal where the robot already stands). Until the layer is seen seeking, the
+    goal is sent again every second."""
+
+    RESEND_S = 1.0
+
+    def __init__(self, robot: Any, x_m: float, y_m: float, tol_m: float) -> None:
+        self.robot, self.x_m, self.y_m, self.tol_m = robot, x_m, y_m, tol_m
+        self.seeking = False
+        self._send(time.monotonic())
+
+    def _send(self, now_s: float) -> None:
+        self.robot.set_goal(self.x_m, self.y_m)
+        self.sent_s = now_s
+
+    def reached(self, st: Any, now_s: float) -> bool:
+        b = st.behaviour
+        fresh = b is not None and b.rx_time_s > self.sent_s
+        if fresh and b.reason != 14:
+            self.seeking = True
+        if not self.seeking and now_s - self.sent_s >= self.RESEND_S:
+            self._send(now_s)
+            return False
+        if not (fresh and b.reason == 14):
+            return False
+        p = st.pose
+        near = p is not None and math.hypot(p.x_m - self.x_m, p.y_m - self.y_m) <= self.tol_m + 0.05
+        return self.seeking or near
+
+
+def _status_line(ep: Any, t: float) -> str:
+    st = ep.state
+    b = st.behaviour
+    p = st.pose
+    lay = f"{b.layer_name}/{b.reason_name}" + (f" [{','.join(b.flag_names)}]" if b.flags else "") if b else "?"
+    pose = f"x={p.x_m:6.2f} y={p.y_m:6.2f} yaw={math.degrees(p.yaw_rad):6.1f}" if p else "no pose"
+    link = "up" if ep.stats.link_up else "DOWN"
+    return f"t={t:6.1f} s  {lay:34s} {pose}  link {link} {ep.meter.rate(time.monotonic()):5.0f} B/s"
+
+
+def _plain(e: BaseException) -> str:
+    """A planner's error without the internal field names (``(obs.scan is None)``)."""
+    return re.sub(r"\s*\(obs\.\w+ is None\)", "", str(e))
+
+
+def _stats_line(ep: Any) -> str:
+    s = ep.stats
+    if ep.meter.full(time.monotonic()) or s.peak_rx_rate_bytes_s > 0:
+        rate = f"peak {s.peak_rx_rate_bytes_s:.0f} B/s"
+    else:  # shorter than one budget window: no peak over a whole window yet
+        rate = f"{ep.meter.rate(time.monotonic()):.0f} B/s over the run (shorter than the {ep.meter.window_s:g} s budget window)"
+    return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, {rate} "
+            f"(budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
+            f"link losses {s.link_losses}, parse errors {s.rx_parse_errors}, lost {s.rx_seq_lost}")
 
 
 def _parse_start(text: str) -> tuple[float, float, float]:
@@ -119,13 +172,13 @@ def robot_spec_from(params: dict[str, float], cfg: Any, control_dt_s: float) -> 
 
     r = cfg.robot
     ack = params["DRIVE_KIND"] < 0.5
-    wheelbase = params["WHEELBASE_MM"] / 1000.0
-    max_steer = math.radians(r.max_steer_deg) if r.max_steer_deg > 0 else math.radians(params["MAX_STEER_CDEG"] / 100.0)
+    wheelbase = milli_to_si(params["WHEELBASE_MM"])
+    max_steer = math.radians(r.max_steer_deg) if r.max_steer_deg > 0 else cdeg_to_rad(params["MAX_STEER_CDEG"])
     offset = r.footprint_offset_m if r.footprint_offset_m >= 0 else (0.5 * wheelbase if ack else 0.0)
     lag = r.stop_lag_s if r.stop_lag_s > 0 else (0.25 if ack else 0.12)
-    fw_max = params["MAX_SPEED_MM_S"] / 1000.0
+    fw_max = milli_to_si(params["MAX_SPEED_MM_S"])
     return RobotSpec(kinematics="ackermann" if ack else "diff_drive", radius_m=r.radius_m, wheelbase_m=wheelbase,
-                     track_m=params["TRACK_MM"] / 1000.0, max_speed_m_s=min(cfg.run.max_speed_m_s, fw_max or cfg.run.max_speed_m_s),
+                     track_m=milli_to_si(params["TRACK_MM"]), max_speed_m_s=min(cfg.run.max_speed_m_s, fw_max or cfg.run.max_speed_m_s),
                      min_speed_m_s=r.min_speed_m_s, max_accel_m_s2=r.max_accel_m_s2,
                      max_yaw_rate_rad_s=r.max_yaw_rate_rad_s, max_steer_rad=max_steer, footprint_offset_m=offset,
                      control_dt_s=control_dt_s, stop_lag_s=lag)
@@ -221,8 +274,6 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         return 2
     out_dir = None
     if ns.out:
-        from ..cli import clear_earlier_outputs, unusable_out_dir
-
         bad = unusable_out_dir(ns.out) or clear_earlier_outputs("run", ns.out, RUN_OUTPUTS, False)
         if bad:
             raise OutputError(f"--out {ns.out}: {bad}")
@@ -270,17 +321,17 @@ def _firmware_layers(ns: argparse.Namespace, cfg: Any, goals: list[Any]) -> int:
     rec = _recorder(ns)
     tlog = _tlog_path(ns, "run", cfg)
     ep = _open(ns, "run", cfg, tlog)
-    from .robot import AgnavRobot
+    from ..link.robot import AgnavRobot
 
     robot = AgnavRobot(ep)
     t0 = time.monotonic()
     try:
         timeout_ms = robot.param_get("LINK_TIMEOUT_MS")
-        ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(timeout_ms / 1000.0, 0.1))
+        ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(milli_to_si(timeout_ms), 0.1))
         robot.release()
         robot.arm()
         robot.set_behaviours(follow_wall=ns.follow_wall, goal_seek=goal is not None, avoid=not ns.no_avoid)
-        fw_goal = _FirmwareGoal(robot, goal.x_m, goal.y_m, robot.param_get("GOAL_TOL_MM") / 1000.0) if goal else None
+        fw_goal = _FirmwareGoal(robot, goal.x_m, goal.y_m, milli_to_si(robot.param_get("GOAL_TOL_MM"))) if goal else None
         if rec is not None and goal is not None:
             rec.log_goal(goal.x_m, goal.y_m)
         print(f"running: firmware layers{f', goal ({goal.x_m:g}, {goal.y_m:g})' if goal else ''}; Ctrl-C stops the robot",
@@ -380,7 +431,7 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
     try:
         if ns.autopilot == "ardupilot":
             from ..planning.base import RobotSpec
-            from .ardupilot import ArduRover, ArduRoverConfig
+            from ..link.ardupilot import ArduRover, ArduRoverConfig
 
             a = cfg.ardupilot
             robot: Any = ArduRover(ep, ArduRoverConfig(a.mode, a.steer_channel, a.throttle_channel, a.trim_us,
@@ -391,15 +442,15 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
             fw_steer = math.radians(a.max_steer_deg)
             robot.start()
         else:
-            from .robot import AgnavRobot
+            from ..link.robot import AgnavRobot
 
             robot = AgnavRobot(ep)
             params = {n: robot.param_get(n) for n in ("DRIVE_KIND", "WHEELBASE_MM", "TRACK_MM", "MAX_SPEED_MM_S",
                                                        "MAX_STEER_CDEG", "LINK_TIMEOUT_MS")}
             # The firmware declares link loss after LINK_TIMEOUT_MS without a heartbeat or setpoint.
-            ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(params["LINK_TIMEOUT_MS"] / 1000.0, 0.1))
+            ep.heartbeat_hz = max(ep.heartbeat_hz, 2.5 / max(milli_to_si(params["LINK_TIMEOUT_MS"]), 0.1))
             spec = robot_spec_from(params, cfg, 1.0 / rate)
-            fw_steer = math.radians(params["MAX_STEER_CDEG"] / 100.0)
+            fw_steer = cdeg_to_rad(params["MAX_STEER_CDEG"])
         ctx = ControllerContext(spec=spec, field=field, laser_mount=laser.mount.pose if laser is not None else None,
                                 tilted=_tilted_mount(tilted), where="this run")
         try:

@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from ..cli import nonneg_int, positive_float, subcommand
+from .argtypes import nonneg_int, positive_float
+from .outputs import OutputError, check_output
+from .registry import subcommand
 
 
 def _scanner(text: str) -> tuple[str, int | None]:
     """``KIND[:PORT]`` -> (kind, port or None for the device's own; 0 = any free port)."""
-    from .emulators import EMULATOR_KINDS
+    from ..sil.emulators import EMULATOR_KINDS
 
     kind, _, port = text.strip().lower().partition(":")
     if kind not in EMULATOR_KINDS:
@@ -73,10 +76,10 @@ def _param(text: str) -> tuple[str, int]:
     ],
 )
 def _cmd_sil(ns: argparse.Namespace) -> int:
+    from ..sil.build import SilBuildError
+    from ..sil.server import ServeOptions, parse_endpoint, serve
+    from ..sil.session import SilConfig
     from ..sim.scenario import ScenarioError, load_scenario
-    from .build import SilBuildError
-    from .server import ServeOptions, parse_endpoint, serve
-    from .session import SilConfig
 
     try:
         sc = load_scenario(ns.scenario)
@@ -92,10 +95,6 @@ def _cmd_sil(ns: argparse.Namespace) -> int:
         print("agnav sil: nothing to serve on (--tcp none and no --pty)", file=sys.stderr)
         return 2
     if ns.tlog:  # before the firmware loads, as `agnav run --tlog`: named, and its missing folders made
-        from pathlib import Path
-
-        from ..link.commands import OutputError, check_output
-
         try:
             check_output("--tlog", ns.tlog)
             Path(ns.tlog).parent.mkdir(parents=True, exist_ok=True)

@@ -1,127 +1,73 @@
-"""The CLI audit's low-severity findings (session 8): scenario error lines inside multi-line TOML values, empty
-option values, whole numbers typed in other forms, waits too long for the threading timeouts, and a flash port
-that does not exist. Each test is what a user typed and what must happen."""
+"""What people type on the command line: options between positionals, negative values after abbreviated options
+and as positionals, stray arguments, empty values, whole numbers in other forms, waits longer than a day,
+option values that contradict each other, and a flash port that does not exist."""
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import pytest
 
 from agnav_host import cli
-from agnav_host.sim.scenario import ScenarioError, _key_index, builtin_names, builtin_text, parse_scenario
 from _cli_helpers import _no_user_config, free_port, nowhere, usage_error  # noqa: F401 (the fixture is autouse)
-from test_cli_input_audit import SMALL, sim_refused
-
-# ---- scenario error lines inside multi-line values --------------------------------------------------------
-BASE = """[scenario]
-name = "t"
-duration_s = 5.0
-{scenario}
-[robot]
-model = "diff_drive"
-start = {{ x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }}
-
-[[goals]]
-x_m = 3.0
-y_m = 0.0
-"""
-BAD = "# <- bad"
 
 
-def _error(text: str) -> ScenarioError:
-    with pytest.raises(ScenarioError) as e:
-        parse_scenario(text, "s.toml")
-    return e.value
+# ---- options between positionals, negative values after abbreviated options and as positionals ----
+def _parse(argv: list[str]):
+    return cli.parse_args(argv)
 
 
-def _bad_line(text: str) -> int:
-    """The line marked ``# <- bad`` (the only one)."""
-    (line,) = [n for n, s in enumerate(text.splitlines(), 1) if s.rstrip().endswith(BAD)]
-    return line
+def test_param_takes_options_between_its_positionals_against_the_fake_robot(capsys):
+    from agnav_host.link.fake import FakeRobot
+
+    with FakeRobot() as fr:
+        assert cli.main(["param", "set", "GOAL_TOL_MM", "--device", fr.device, "--no-tlog", "150"]) == 0
+        assert fr.params["GOAL_TOL_MM"] == 150
+        assert cli.main(["param", "get", "--device", fr.device, "--wait", "2", "--no-tlog", "GOAL_TOL_MM"]) == 0
+    assert "GOAL_TOL_MM 150" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("body, field", [
-    ('[[walls]]\npoints = [\n  [0, 0],\n  [1, 0],\n  [1, "x"],  ' + BAD + '\n]\n', "walls[0].points[2]"),
-    ('[[walls]]\npoints = [[0, 0], [1, 0]]\n\n[[walls]]\npoints = [\n  [0, 0],\n  [true, 1],  ' + BAD + '\n]\n',
-     "walls[1].points[1]"),
-    ('[[walls]]\npoints = [[0, 0],\n  [1, 0], [2, "x"]]  ' + BAD + '\n', "walls[0].points[2]"),
-    ('[[rows]]\npoints = [\n  [0, 0],\n  [5, 0],\n  [6, "x"],  ' + BAD + '\n]\n', "rows[0].points[2]"),
-    ('[[rows]]\nstart = { x_m = 0, y_m = 0, yaw_deg = 0 }\nlength_m = 5\ngaps = [\n  [1, 2],\n  [3, 2],  ' + BAD
-     + '\n]\n', "rows[0].gaps[1]"),
-    ('[[movers]]\nwaypoints = [\n  [0, 0],\n  [1],  ' + BAD + '\n]\n', "movers[0].waypoints[1]"),
-    ('[meta]\npath = [\n  [0, 0],\n  [1, 0],\n  [2, nan],  ' + BAD + '\n]\n', "meta.path[2]"),
-    ('[meta]\nlandmarks = [\n  [0, 0, 0.1],\n  [1, 0, -1],  ' + BAD + '\n]\n', "meta.landmarks[1]"),
-], ids=["walls", "second-walls", "two-elements-on-a-line", "rows-points", "rows-gaps", "movers", "meta-path",
-        "meta-landmarks"])
-def test_an_element_of_a_multiline_array_names_its_own_line(body, field):
-    """It named the line of the key (``points = [``), whichever element was wrong."""
-    text = BASE.format(scenario="") + "\n" + body
-    e = _error(text)
-    assert e.field == field
-    assert e.line == _bad_line(text), (e, text.splitlines()[e.line - 1])
+@pytest.mark.parametrize("argv, dest, value", [
+    (["param", "set", "AVOID_WAIT_MS", "-1e3", "--device", "tcp:h:1"], "value", "-1e3"),
+    (["param", "set", "AVOID_WAIT_MS", "--device", "tcp:h:1", "-1e3"], "value", "-1e3"),
+    (["param", "set", "AVOID_WAIT_MS", "-inf"], "value", "-inf"),
+    (["plan", "--start", "0,0,0", "--goal", "3,5,90", "--start-steer", "-1e-3"], "start_steer_deg", -1e-3),
+    (["rows", "--scan", "s.csv", "--mou", "-0.2,0.1,-5"], "mount", None),
+    (["sim", "--out", "o", "--go", "-3,1"], "goal", (-3.0, 1.0, None)),
+])
+def test_negative_values_after_abbreviated_options_and_as_positionals(argv, dest, value):
+    got = getattr(_parse(argv), dest)
+    assert got is not None and (value is None or got == value), got
 
 
-@pytest.mark.parametrize("scenario", [
-    'description = """\nrows [1 and 2\n"""\ncontrol_hz = -1  ' + BAD + "\n",  # "[" in a string: later keys lost
-    'description = """\ncontrol_hz = 3\n"""\ncontrol_hz = -1  ' + BAD + "\n",  # a "key" inside a string taken
-    'description = "say \\"[\\" now"\ncontrol_hz = -1  ' + BAD + "\n",  # an escaped quote ended the string
-    "description = '''\nit's [here]\n'''\ncontrol_hz = -1  " + BAD + "\n",
-    '"control_hz" = -1  ' + BAD + "\n",  # a quoted key
-    'bounds = [\n  -5, -5,\n  5, 5,\n]\ncontrol_hz = -1  ' + BAD + "\n",
-], ids=["bracket-in-string", "key-in-string", "escaped-quote", "literal-string", "quoted-key", "multiline-array"])
-def test_a_key_after_a_multiline_string_or_array_keeps_its_line(scenario):
-    text = BASE.format(scenario=scenario)
-    e = _error(text)
-    assert e.field == "scenario.control_hz" and e.line == _bad_line(text), (e, text)
+@pytest.mark.parametrize("goal, why", [("-3,abc,90", "pose must contain numbers, got '-3,abc,90'"),
+                                       ("-3,5,90,", "pose must be X,Y,HEADING_DEG, got '-3,5,90,'"),
+                                       ("-3,,90", "pose must contain numbers, got '-3,,90'")])
+def test_a_malformed_negative_list_gets_the_options_own_message(capsys, goal, why):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["plan", "--start", "0,0,0", "--goal", goal])
+    assert e.value.code == 2
+    assert f"agnav plan: error: argument --goal: {why}" in capsys.readouterr().err
 
 
-def test_a_table_header_inside_a_multiline_string_is_not_a_table():
-    """``[[goals]]`` inside a description counted as a goal: goals[1]'s error named goals[0]'s line."""
-    text = BASE.format(scenario="description = '''\n[[goals]]\n'''\n") + '\n[[goals]]\nx_m = 1.0\ny_m = "x"  ' + BAD + "\n"
-    e = _error(text)
-    assert e.field == "goals[1].y_m" and e.line == _bad_line(text)
+def test_stray_arguments_are_named_with_the_subcommands_usage(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["param", "set", "A", "1", "2", "--device", nowhere()])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "usage: agnav param" in err and "agnav param: error: unrecognized arguments: 2" in err
 
 
-def test_sim_names_the_line_of_a_bad_element_in_a_multiline_wall(tmp_path, capsys):
-    text = SMALL + '\n[[walls]]\npoints = [\n  [0, 0],\n  [1, "x"],  ' + BAD + '\n]\n'
-    f = tmp_path / "s.toml"
-    f.write_text(text)
-    err = sim_refused(capsys, tmp_path, f)
-    assert err.startswith(f"agnav sim: {f}:{_bad_line(text)}: walls[0].points[1]: must be a [x_m, y_m] pair"), err
-
-
-@pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n", "\ufeff"])
-def test_sim_of_an_empty_scenario_says_it_is_empty(text, tmp_path, capsys):
-    """It said "<root>: missing required table [scenario]"."""
-    f = tmp_path / "s.toml"
-    f.write_text(text, encoding="utf-8")
-    err = sim_refused(capsys, tmp_path, f)
-    assert err.startswith(f"agnav sim: {f}: no scenario in the file (it is empty or holds only comments)"), err
-
-
-def _value_paths(v, path=()):
-    """Every table key, array-of-tables entry and array element of a parsed TOML document, as paths."""
-    if path:
-        yield path
-    items = v.items() if isinstance(v, dict) else enumerate(v) if isinstance(v, list) else ()
-    for k, x in items:
-        yield from _value_paths(x, (*path, k))
-
-
-@pytest.mark.parametrize("name", builtin_names())
-def test_every_value_of_a_builtin_scenario_has_its_own_line(name):
-    """Whatever a scenario check blames (a key, a table, one element of a list) is found itself, not a parent:
-    the built-ins have multi-line arrays, inline tables and [[tables]]."""
-    text = builtin_text(name)
-    index = dict(reversed(_key_index(text)))  # the first line of each path
-    missing = [p for p in _value_paths(tomllib.loads(text)) if p not in index]
-    assert not missing
-    lines = text.splitlines()
-    for path, line in index.items():  # a key's line names the key
-        if isinstance(path[-1], str):
-            assert path[-1] in lines[line - 1], (path, line)
+# ---- calibrate --settle-s must be below the step's time limit, as in the config file -----------------
+@pytest.mark.parametrize("opts, why", [
+    (["--settle-s", "2", "--max-step-s", "0.5"], "--settle-s (2 s) must be < --max-step-s (0.5 s)"),
+    (["--settle-s", "10"], "--settle-s (10 s) must be < [calibration] max_step_s (6 s)"),
+    (["--max-step-s", "0.2"], "[calibration] settle_s (1 s) must be < --max-step-s (0.2 s)"),
+])
+def test_calibrate_settle_time_not_below_the_step_limit_is_refused_before_connecting(capsys, opts, why):
+    assert cli.main(["calibrate", "steering", "--device", nowhere(), "--no-tlog", "--yes", *opts]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"agnav calibrate: {why}: a sweep step settles first, then measures"
 
 
 # ---- empty option values ---------------------------------------------------------------------------------
@@ -176,7 +122,7 @@ def test_text_options_with_choices_or_a_type_keep_their_own_message(capsys):
 # ---- whole numbers typed in other forms -------------------------------------------------------------------
 @pytest.mark.parametrize("typed, value", [("010", 10), ("0x10", 16), ("0b101", 5), ("1_000", 1000), (" 7", 7), ("00", 0)])
 def test_a_seed_typed_with_leading_zeros_or_a_base_prefix_is_read(typed, value):
-    """"010" was refused as "expected a whole number" (Python's base-0 int() takes no leading zero)."""
+    """"010" is ten, although Python's base-0 int() takes no leading zero."""
     assert cli.build_parser().parse_args(["sim", "--out", "o", "--seed", typed]).seed == value
 
 
@@ -219,7 +165,7 @@ def test_a_wait_of_a_day_is_taken():
     ("{tmp}", "a folder, not a serial device"),
 ])
 def test_flash_to_a_port_that_does_not_exist_is_refused_even_in_a_dry_run(port, why, tmp_path, capsys):
-    """The dry run printed the upload command and said 0; the upload itself failed in pio's words."""
+    """Refused before the command is shown, in agnav's words, not pio's after an upload attempt."""
     port = port.format(tmp=tmp_path)
     assert cli.main(["flash", "--dry-run", "--port", port]) == 1
     cap = capsys.readouterr()

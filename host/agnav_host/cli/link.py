@@ -1,4 +1,4 @@
-"""``agnav`` subcommands of the link area: run, calibrate, flash, replay, param, key, config.
+"""``agnav`` subcommands of the link area: calibrate, flash, replay, param, key, config (``run``: :mod:`.run`).
 
 Every command reads the host config (``--config``, see docs/user_guide.md) and lets options
 override it. Exit codes: 0 ok, 1 robot/link failure or an output file that cannot be written,
@@ -20,12 +20,14 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from ..cli import int_in, nonneg_float, positive_float, positive_int, subcommand, unwritable_file, up_to_a_day
-from .config import CalibrationConfig, LinkConfig
-from .tlog import MAV_TYPE_GCS
+from ..link.config import CalibrationConfig, LinkConfig
+from ..link.tlog import MAV_TYPE_GCS
+from .argtypes import int_in, nonneg_float, positive_float, positive_int, up_to_a_day
+from .outputs import OutputError, check_output, unwritable_file
+from .progress import ProgressLine
+from .registry import subcommand
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
-_sleep = time.sleep  # the run loop's pacing (tests replace it to inject Ctrl-C)
 _LINK_DEFAULTS = LinkConfig()
 _CAL_DEFAULTS = CalibrationConfig()
 PNG_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")  # what `--png` writes (matplotlib picks by suffix)
@@ -54,24 +56,8 @@ def _err(cmd: str, text: str) -> None:
     print(f"agnav {cmd}: {text}", file=sys.stderr)
 
 
-class OutputError(Exception):
-    """An output file that cannot be written (exit 1); the message names the path and the reason."""
-
-
-def check_output(option: str, path: str | Path, suffixes: tuple[str, ...] = ()) -> Path:
-    """Refuse an output path before any work: a wrong suffix is a usage error (ValueError, exit 2),
-    a path that cannot be written an :class:`OutputError` (exit 1)."""
-    p = Path(path)
-    if suffixes and p.suffix.lower() not in suffixes:
-        raise ValueError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}")
-    why = unwritable_file(p)
-    if why:
-        raise OutputError(f"{option} {path}: cannot write there: {why}")
-    return p
-
-
 def _config(ns: argparse.Namespace) -> Any:
-    from .config import load_config
+    from ..link.config import load_config
 
     return load_config(getattr(ns, "config", None))
 
@@ -101,8 +87,8 @@ _NO_TLOG_YET = object()
 def _open(ns: argparse.Namespace, cmd: str, cfg: Any, tlog: Any = _NO_TLOG_YET) -> Any:
     """Endpoint from options + config, started, heartbeat seen (from ``--target-system`` when set).
     On failure the endpoint is closed and an empty telemetry log removed."""
-    from .endpoint import Endpoint, LinkTimeout
-    from .keys import load_key
+    from ..link.endpoint import Endpoint, LinkTimeout
+    from ..link.keys import load_key
 
     lc = cfg.link
     device = ns.device or lc.device
@@ -157,10 +143,10 @@ def _open(ns: argparse.Namespace, cmd: str, cfg: Any, tlog: Any = _NO_TLOG_YET) 
 
 
 def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
-    from .config import ConfigError
-    from .endpoint import LinkTimeout
-    from .keys import KeyError_, KeyWriteError
-    from .robot import CommandFailed
+    from ..link.config import ConfigError
+    from ..link.endpoint import LinkTimeout
+    from ..link.keys import KeyError_, KeyWriteError
+    from ..link.robot import CommandFailed
 
     try:
         return int(fn(ns))
@@ -181,76 +167,10 @@ def _guard(cmd: str, fn: Any, ns: argparse.Namespace) -> int:
         return 1
 
 
-# ---- run ---------------------------------------------------------------------------------------
-from ..robot import POSE_STALE_S  # noqa: E402,F401  (re-exported: the fault suite and tests read it here)
-
-
-class _FirmwareGoal:
-    """A goal for the firmware's move-to-goal layer, and when it counts as reached.
-
-    The layer reports GOAL_REACHED (reason 14) until it gets a new goal, and the goal frame is not
-    acknowledged: a status from before the goal arrived, or a goal lost on the radio, would read as
-    "reached" at once. So GOAL_REACHED counts only when received after the goal was sent and either
-    the layer has been seen seeking this goal since, or the odometry pose is within the robot's own
-    GOAL_TOL_MM of it (a goal where the robot already stands). Until the layer is seen seeking, the
-    goal is sent again every second."""
-
-    RESEND_S = 1.0
-
-    def __init__(self, robot: Any, x_m: float, y_m: float, tol_m: float) -> None:
-        self.robot, self.x_m, self.y_m, self.tol_m = robot, x_m, y_m, tol_m
-        self.seeking = False
-        self._send(time.monotonic())
-
-    def _send(self, now_s: float) -> None:
-        self.robot.set_goal(self.x_m, self.y_m)
-        self.sent_s = now_s
-
-    def reached(self, st: Any, now_s: float) -> bool:
-        b = st.behaviour
-        fresh = b is not None and b.rx_time_s > self.sent_s
-        if fresh and b.reason != 14:
-            self.seeking = True
-        if not self.seeking and now_s - self.sent_s >= self.RESEND_S:
-            self._send(now_s)
-            return False
-        if not (fresh and b.reason == 14):
-            return False
-        p = st.pose
-        near = p is not None and math.hypot(p.x_m - self.x_m, p.y_m - self.y_m) <= self.tol_m + 0.05
-        return self.seeking or near
-
-
-def _status_line(ep: Any, t: float) -> str:
-    st = ep.state
-    b = st.behaviour
-    p = st.pose
-    lay = f"{b.layer_name}/{b.reason_name}" + (f" [{','.join(b.flag_names)}]" if b.flags else "") if b else "?"
-    pose = f"x={p.x_m:6.2f} y={p.y_m:6.2f} yaw={math.degrees(p.yaw_rad):6.1f}" if p else "no pose"
-    link = "up" if ep.stats.link_up else "DOWN"
-    return f"t={t:6.1f} s  {lay:34s} {pose}  link {link} {ep.meter.rate(time.monotonic()):5.0f} B/s"
-
-
-def _plain(e: BaseException) -> str:
-    """A planner's error without the internal field names (``(obs.scan is None)``)."""
-    return re.sub(r"\s*\(obs\.\w+ is None\)", "", str(e))
-
-
-def _stats_line(ep: Any) -> str:
-    s = ep.stats
-    if ep.meter.full(time.monotonic()) or s.peak_rx_rate_bytes_s > 0:
-        rate = f"peak {s.peak_rx_rate_bytes_s:.0f} B/s"
-    else:  # shorter than one budget window: no peak over a whole window yet
-        rate = f"{ep.meter.rate(time.monotonic()):.0f} B/s over the run (shorter than the {ep.meter.window_s:g} s budget window)"
-    return (f"link: rx {s.rx_bytes} B / {s.rx_msgs} frames, tx {s.tx_bytes} B / {s.tx_msgs} frames, {rate} "
-            f"(budget {ep.budget_bytes_s:.0f}), reconnects {s.reconnects}, "
-            f"link losses {s.link_losses}, parse errors {s.rx_parse_errors}, lost {s.rx_seq_lost}")
-
-
 # ---- calibrate -----------------------------------------------------------------------------------
 def _cmd_calibrate(ns: argparse.Namespace) -> int:
     from ..calibration.wizard import Aborted, ConsoleIO, Wizard
-    from .robot import AgnavRobot
+    from ..link.robot import AgnavRobot
 
     cfg = _config(ns)
     c = cfg.calibration
@@ -414,16 +334,20 @@ def _replay_progress(path: str) -> Callable[[int, int], None] | None:
     if size < REPLAY_PROGRESS_BYTES:
         return None
 
+    line = ProgressLine()
+
     def show(done: int, total: int) -> None:
-        pct = 100.0 * done / max(total, 1)
-        print(f"\rreading {path}: {done / 1e6:.1f} of {total / 1e6:.1f} MB ({pct:3.0f} %)", end="" if done < total else "\n",
-              file=sys.stderr, flush=True)
+        text = f"reading {path}: {done / 1e6:.1f} of {total / 1e6:.1f} MB ({100.0 * done / max(total, 1):3.0f} %)"
+        if done >= total:
+            line.end(text)
+        else:
+            line.show(text)
 
     return show
 
 
 def _cmd_replay(ns: argparse.Namespace) -> int:
-    from .replay import TlogError, summarize_tlog
+    from ..link.replay import TlogError, summarize_tlog
 
     # usage first (wrong suffixes), then whether the outputs can be written, then the work
     for opt, path, suffixes in (("--png", ns.png, PNG_SUFFIXES), ("--rrd", ns.rrd, (".rrd",))):
@@ -495,7 +419,7 @@ def known_param_names() -> list[str]:
     (20 of its rows). Used for hints and the whole-number check before connecting; a name outside it is
     checked with the robot itself (:func:`_param_read`)."""
     try:
-        from .fake import FIRMWARE_PARAMS
+        from ..link.fake import FIRMWARE_PARAMS
     except ImportError:
         return []
     return list(FIRMWARE_PARAMS)
@@ -529,8 +453,8 @@ def _param_number(name: str, text: str) -> float:
 def _param_read(ep: Any, robot: Any, name: str) -> Any:
     """PARAM_VALUE of ``name``; :class:`UnknownParameter` when the robot refuses the name (its
     STATUSTEXT "unknown parameter") or never answers for a name the firmware does not know."""
-    from .endpoint import LinkTimeout
-    from .robot import _pid
+    from ..link.endpoint import LinkTimeout
+    from ..link.robot import _pid
 
     def match(m: Any) -> bool:
         if m.get_type() == "PARAM_VALUE":
@@ -551,7 +475,7 @@ def _param_read(ep: Any, robot: Any, name: str) -> Any:
 
 
 def _cmd_param(ns: argparse.Namespace) -> int:
-    from .robot import AgnavRobot
+    from ..link.robot import AgnavRobot
 
     if ns.action in ("get", "set") and not ns.name:
         _err("param", f"param {ns.action} needs NAME")
@@ -606,7 +530,7 @@ subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARA
 
 # ---- key -----------------------------------------------------------------------------------------
 def _cmd_key(ns: argparse.Namespace) -> int:
-    from .keys import default_key_path, fingerprint, load_key, new_key
+    from ..link.keys import default_key_path, fingerprint, load_key, new_key
 
     if ns.action == "new":
         p, key = new_key(ns.key_file, force=ns.force)
@@ -626,10 +550,10 @@ def _cmd_key(ns: argparse.Namespace) -> int:
 
 def _key_push(ns: argparse.Namespace) -> int:
     """Load the key into the robot (SETUP_SIGNING), then prove the robot takes frames signed with it."""
-    from .endpoint import LinkTimeout
-    from .keys import CLEAR_KEY, fingerprint, load_key, setup_signing_message
-    from .robot import AgnavRobot
-    from .state import _text
+    from ..link.endpoint import LinkTimeout
+    from ..link.keys import CLEAR_KEY, fingerprint, load_key, setup_signing_message
+    from ..link.robot import AgnavRobot
+    from ..link.state import _text
 
     new = CLEAR_KEY if ns.clear else load_key(ns.key_file)
     old = load_key(ns.old_key_file) if ns.old_key_file else None
@@ -690,7 +614,7 @@ subcommand("key", help="MAVLink 2 signing key: new (create, 0600), show (fingerp
 
 # ---- config --------------------------------------------------------------------------------------
 def _cmd_config(ns: argparse.Namespace) -> int:
-    from .config import config_template, default_config_path, to_toml
+    from ..link.config import config_template, default_config_path, to_toml
 
     if ns.template:
         if ns.config:

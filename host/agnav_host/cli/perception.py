@@ -24,7 +24,9 @@ import math
 import sys
 from typing import Any
 
-from ..cli import nonneg_int, positive_float, subcommand
+from .argtypes import nonneg_int, positive_float
+from .progress import ProgressLine
+from .registry import subcommand
 
 _KEYS = ("lateral_offset_m", "heading_rad", "row_spacing_m", "confidence", "end_of_row")
 _MAX_SPACING_M = 5.0  # a wider --spacing is taken for centimetres or another unit
@@ -52,7 +54,7 @@ def _mount(text: str) -> tuple[float, float, float]:
 
 
 def _method_names() -> list[str]:
-    from ._rows import row_method_names
+    from ..perception import row_method_names
 
     return row_method_names()
 
@@ -82,8 +84,7 @@ def _method_names() -> list[str]:
 def _cmd_rows(ns: argparse.Namespace) -> int:
     from ..scanio import ScanFileError, load_scan_csv
     from ..types import Pose2D
-    from ._rows import RowParams, detect_rows
-    from ._scan import check_scan
+    from ..perception import RowParams, check_scan, detect_rows
 
     if ns.method not in _method_names():
         print(f"agnav rows: unknown method {ns.method!r}; known: {', '.join(_method_names())}", file=sys.stderr)
@@ -143,12 +144,9 @@ _PROGRESS_EVERY_S = 0.25
 
 def _rows_on_log(ns: argparse.Namespace) -> int:
     """``agnav rows --scan LOG.alog``: the row detection on every scan of one laser, or on scan ``--index``."""
-    import time
-
     from ..lasers.log import LaserLogError, laser_log_info, read_laser_log
     from ..types import Pose2D
-    from ._rows import RowParams, detect_rows
-    from ._scan import check_scan
+    from ..perception import RowParams, check_scan, detect_rows
 
     def fail(msg: str) -> int:
         print(f"agnav rows: {msg}", file=sys.stderr)
@@ -185,8 +183,9 @@ def _rows_on_log(ns: argparse.Namespace) -> int:
         x, y, yaw_deg = ns.mount
         explicit = Pose2D(x, y, math.radians(yaw_deg))
     want = total if ns.index is None else 1
+    # a line that says how far the reading is, while the results go to a file or a pipe
     show_progress = want >= _PROGRESS_MIN_SCANS and sys.stderr.isatty() and not sys.stdout.isatty()
-    last_shown = 0.0
+    line = ProgressLine(every_s=_PROGRESS_EVERY_S, wipe=True)
     measured = 0
     try:
         with read_laser_log(ns.scan, lid) as reader:
@@ -211,10 +210,8 @@ def _rows_on_log(ns: argparse.Namespace) -> int:
                         print(json.dumps({**head, **{k2: getattr(est, k2) for k2 in _KEYS}}))
                     else:
                         print(f"scan {k} t={rec.t_s:.3f} s: {_human(ns.method, est, n_usable)}")
-                if show_progress and time.monotonic() - last_shown >= _PROGRESS_EVERY_S:
-                    last_shown = time.monotonic()
-                    print(f"\ragnav rows: scan {k + 1}/{total} ({100 * (k + 1) // total}%)", end="", file=sys.stderr,
-                          flush=True)
+                if show_progress:
+                    line.show(f"agnav rows: scan {k + 1}/{total} ({100 * (k + 1) // total}%)")
                 if ns.index is not None:
                     break
     except LaserLogError as e:  # the file changed after the check above
@@ -224,8 +221,7 @@ def _rows_on_log(ns: argparse.Namespace) -> int:
     except OSError as e:
         return fail(f"{ns.scan}: cannot read laser log: {e.strerror or e}")
     finally:
-        if show_progress:
-            print("\r\033[K", end="", file=sys.stderr, flush=True)
+        line.end()
     if measured == 0:
         which = f"scan {ns.index}" if ns.index is not None else f"none of the {want} scans of laser {lid}"
         print(f"agnav rows: {ns.scan}: no usable return in {which}: nothing measured", file=sys.stderr)

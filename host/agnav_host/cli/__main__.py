@@ -1,0 +1,5 @@
+"""``python -m agnav_host.cli``: the ``agnav`` command."""
+
+from agnav_host.cli import main
+
+raise SystemExit(main())
