@@ -477,11 +477,16 @@ def _param_read(ep: Any, robot: Any, name: str) -> Any:
 def _cmd_param(ns: argparse.Namespace) -> int:
     from ..link.robot import AgnavRobot
 
+    if ns.action in ("save", "load"):
+        return _param_file(ns)
     if ns.action in ("get", "set") and not ns.name:
         _err("param", f"param {ns.action} needs NAME")
         return 2
     if ns.action == "set" and ns.value is None:
         _err("param", "param set needs NAME VALUE")
+        return 2
+    if ns.action == "store" and ns.name is not None:
+        _err("param", f"param store takes no NAME (got {ns.name!r}): it stores every parameter")
         return 2
     if ns.action == "list" and ns.name is not None:
         _err("param", f"param list takes no NAME (got {ns.name!r}); use `agnav param get {ns.name}`")
@@ -499,6 +504,9 @@ def _cmd_param(ns: argparse.Namespace) -> int:
             for k, v in params.items():
                 print(f"{k:16s} {v:g}")
             print(f"{len(params)} parameters", file=sys.stderr)
+        elif ns.action == "store":
+            r.params_store()
+            print("parameters stored in the robot's EEPROM")
         elif ns.action == "get":
             print(f"{ns.name} {float(_param_read(ep, r, ns.name).param_value):g}")
         else:
@@ -514,10 +522,74 @@ def _cmd_param(ns: argparse.Namespace) -> int:
         ep.close()
 
 
-subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE (PARAM_* protocol)",
-           args=_LINK_ARGS + [(("action",), {"choices": ["list", "get", "set"]}),
+def _param_file(ns: argparse.Namespace) -> int:
+    """``param save FILE``: every parameter into a .parm file (MAVProxy's form). ``param load FILE``: set the
+    file's parameters on the robot (all names checked first, nothing sent if one is unknown), then store them
+    in its EEPROM unless ``--no-store``."""
+    from ..link.parm import ParmError, read_parm, write_parm
+    from ..link.robot import AgnavRobot, CommandFailed
+
+    if not ns.name or ns.value is not None:
+        _err("param", f"param {ns.action} takes one FILE (e.g. `agnav param {ns.action} robot.parm`)")
+        return 2
+    wanted: dict[str, float] = {}
+    if ns.action == "load":
+        try:
+            wanted = read_parm(ns.name)
+        except ParmError as e:
+            _err("param", str(e))
+            return 2
+        if not wanted:
+            _err("param", f"{ns.name}: no parameters in the file")
+            return 2
+    cfg = _config(ns)
+    ep = _open(ns, "param", cfg)
+    try:
+        r = AgnavRobot(ep, timeout_s=ns.timeout)
+        have = r.param_list(timeout_s=max(10.0, ns.timeout * 10))
+        if ns.action == "save":
+            try:
+                write_parm(have, ns.name, header=f"AgNav robot parameters, {len(have)} of them (agnav param save)")
+            except OSError as e:
+                _err("param", f"{ns.name}: cannot write: {e.strerror or e}")
+                return 1
+            print(f"{len(have)} parameters saved to {ns.name}")
+            return 0
+        unknown = sorted(set(wanted) - set(have))
+        if unknown:
+            _err("param", f"{ns.name}: the robot has no parameter {', '.join(unknown)}; nothing sent "
+                          "(`agnav param list` lists them)")
+            return 2
+        kept: list[str] = []
+        changed = 0
+        for name, v in wanted.items():
+            if have[name] == v:
+                continue
+            try:
+                r.param_set(name, v)
+                changed += 1
+            except CommandFailed as e:
+                kept.append(str(e))
+        for why in kept:
+            _err("param", why)
+        print(f"{changed} of {len(wanted)} parameters changed ({len(wanted) - changed - len(kept)} already so)")
+        if not ns.no_store:
+            r.params_store()
+            print("parameters stored in the robot's EEPROM")
+        return 1 if kept else 0
+    finally:
+        ep.close()
+
+
+subcommand("param", help="robot parameters: list, get NAME, set NAME VALUE, store (to EEPROM), save FILE / load FILE "
+                         "(.parm, MAVProxy's and Mission Planner's format)",
+           args=_LINK_ARGS + [(("action",), {"choices": ["list", "get", "set", "store", "save", "load"]}),
                               (("name",), {"nargs": "?", "default": None,
-                                           "help": "parameter name, case-sensitive (e.g. LINK_TIMEOUT_MS)"}),
+                                           "help": "parameter name, case-sensitive (e.g. LINK_TIMEOUT_MS); "
+                                                   "save / load: the .parm file"}),
+                              (("--no-store",), {"dest": "no_store", "action": "store_true",
+                                                 "help": "load: set the values on the robot but do not store them in "
+                                                         "its EEPROM"}),
                               (("value",), {"nargs": "?", "default": None,
                                             "help": "set: a finite number (negative allowed; whole for the "
                                                     "firmware's integer parameters)"}),
