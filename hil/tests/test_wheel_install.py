@@ -136,3 +136,6 @@ def test_a_missing_compiler_is_named_with_its_debian_package_on_first_use(instal
     assert r.returncode == 1
     assert "'agnav-no-such-cc' is not installed" in r.stderr and "apt-get install gcc" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+    r = _run([str(installed["agnav"]), "sim", "corridor_obstacles", "--firmware", "sil", "--duration", "1",
+              "--out", str(installed["root"] / "no-cc")], cwd=installed["root"], env=env)
+    assert r.returncode == 1 and "apt-get install gcc" in r.stderr and "Traceback" not in r.stderr, r.stderr

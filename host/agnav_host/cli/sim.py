@@ -111,11 +111,17 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
             line.show(f"[{sc.name}] t={t:6.1f}/{total:.0f} s  {pct:3d}%")
 
     if getattr(ns, "firmware", "ideal") in ("sil", "avr"):
+        from ..sil.build import SilBuildError
         from ..sil.session import SilConfig, run_sil_scenario, write_sil_outputs
 
         cfg = SilConfig(firmware="avr" if ns.firmware == "avr" else "native")
-        sil = run_sil_scenario(sc, ns.planner, ns.seed, ns.duration, goal, config=cfg,
-                               progress=None if ns.quiet else progress)
+        try:
+            sil = run_sil_scenario(sc, ns.planner, ns.seed, ns.duration, goal, config=cfg,
+                                   progress=None if ns.quiet else progress)
+        except SilBuildError as e:  # no compiler, no simavr, a firmware that does not build
+            line.end()
+            print(f"agnav sim: --firmware {ns.firmware}: {e}", file=sys.stderr)
+            return 1
         result = sil.run
         line.end()
         write = lambda: write_sil_outputs(sil, ns.out, plot=not ns.no_plot)  # noqa: E731
