@@ -11,6 +11,10 @@ slip, tick quantisation and steering error: a few degrees of heading and tens of
   moves with the odometry increments, extrapolates over the odometry's latency, and is corrected by
   the post sightings.
 
+Laser SLAM offline (``agnav slam``): :mod:`.slam` (scan-matching odometry fused with the wheel odometry, loop
+closure on a pose graph) with :mod:`.scan_match`, :mod:`.pose_graph`, :mod:`.occupancy` (map_server maps),
+:mod:`.carmen` and :mod:`.slam_io` (the logs), :mod:`.relations` (the relative-pose score) and :mod:`.killian`.
+
 See ``docs/localisation.md`` for the approach and its limits.
 """
 
