@@ -7,10 +7,10 @@ comment header; :func:`read_parm` reads both and raises :class:`ParmError` namin
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 from pathlib import Path
+
+from ..atomic import write_atomic
 
 __all__ = ["ParmError", "read_parm", "write_parm", "format_parm"]
 
@@ -36,19 +36,7 @@ def format_parm(params: dict[str, float], header: str = "") -> str:
 def write_parm(params: dict[str, float], path: str | Path, header: str = "") -> Path:
     """Write ``params`` to ``path`` atomically (a temporary file beside it, then renamed): a full disk leaves the
     old file, or none, never half of one. OSError as the file system raises it."""
-    p = Path(path)
-    data = format_parm(params, header).encode("ascii")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent if str(p.parent) else ".")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return p
+    return write_atomic(path, format_parm(params, header))
 
 
 def read_parm(path: str | Path) -> dict[str, float]:
