@@ -323,7 +323,74 @@ def run_sil(sc: Scenario, seed: int, *, localise: bool = True, tracks: bool = Fa
         s.close()
 
 
-SIL_SCENARIOS = ("timed_static", "timed_dynamic", "timed_delay")
+UTURN_TOML = """
+[scenario]
+name = "timed_uturn"
+description = "timed run, RC car out 6 m and back round a U-turn to (6.0, 1.6, 180 deg) at 16 s, one unknown box, a walker crossing once"
+duration_s = 26.0
+dt_s = 0.01
+control_hz = 20.0
+[robot]
+model = "ackermann"
+start = { x_m = 0.0, y_m = 0.0, yaw_deg = 0.0 }
+max_speed_m_s = 2.0
+[robot.calib]
+tables = "default"
+[laser]
+model = "tim310"
+[[goals]]
+x_m = 6.0
+y_m = 1.6
+yaw_deg = 180.0
+arrival_s = 16.0
+tolerance_m = 0.05
+[[walls]]
+points = [[-3.0, -4.0], [11.0, -4.0], [11.0, 6.0], [-3.0, 6.0]]
+closed = true
+[[boxes]]
+x_m = 3.2
+y_m = 0.15
+size_x_m = 0.4
+size_y_m = 0.4
+[[movers]]
+radius_m = 0.25
+speed_m_s = 0.6
+waypoints = [[5.0, -3.5], [5.0, 4.5]]
+loop = false
+start_s = 1.0
+[[circles]]
+x_m = 1.0
+y_m = -1.4
+radius_m = 0.08
+[[circles]]
+x_m = 2.5
+y_m = 2.6
+radius_m = 0.08
+[[circles]]
+x_m = 4.2
+y_m = -1.3
+radius_m = 0.08
+[[circles]]
+x_m = 7.2
+y_m = -0.9
+radius_m = 0.08
+[[circles]]
+x_m = 8.6
+y_m = 2.7
+radius_m = 0.08
+[[circles]]
+x_m = 6.5
+y_m = 3.4
+radius_m = 0.08
+[meta]
+landmarks = [[1.0, -1.4, 0.08], [2.5, 2.6, 0.08], [4.2, -1.3, 0.08], [7.2, -0.9, 0.08], [8.6, 2.7, 0.08], [6.5, 3.4, 0.08]]
+"""
+#: the firmware-in-the-loop cases: scenario names, and the U-turn goal built here
+SIL_SCENARIOS = ("timed_static", "timed_dynamic", "timed_delay", "timed_uturn")
+
+
+def _scenario(name: str) -> Scenario:
+    return parse_scenario(UTURN_TOML) if name == "timed_uturn" else load_scenario(name)
 
 
 def sil_section(seeds: list[int], odometry_only_seeds: int = 1) -> tuple[list[SilCase], list[SilCase]]:
@@ -336,7 +403,7 @@ def sil_section(seeds: list[int], odometry_only_seeds: int = 1) -> tuple[list[Si
     loc: list[SilCase] = []
     odo: list[SilCase] = []
     for nm in SIL_SCENARIOS:
-        sc = load_scenario(nm)
+        sc = _scenario(nm)
         runs = [(True, s) for s in seeds] + [(False, s) for s in seeds[:odometry_only_seeds]]
         for lz, s in runs:
             r = run_sil(sc, s, localise=lz)
@@ -415,6 +482,66 @@ MULTI_TASKS = [
 ]
 
 
+def physical_bound_s(length_m: float, lim: TimedLimits) -> float:
+    """Shortest time to drive ``length_m`` from rest to rest at |a| <= accel and v <= v_max (no dead band,
+    no stop model): no plan over a path that long can be faster."""
+    a, v = lim.accel_m_s2, lim.v_max_m_s
+    return length_m / v + v / a if length_m >= v * v / a else 2.0 * math.sqrt(length_m / a)
+
+
+def random_goals_section(n: int, seed: int = 0, radius_m: float = 6.0) -> dict[str, float]:
+    """``n`` random goal poses within ``radius_m`` of the start, any heading, the ref-003 car (no reverse):
+    a plan at the shortest (Dubins) length / 0.8 m/s + 3 s must be feasible; a request at half the
+    straight-line time at 2 m/s must be refused with an earliest arrival at or above the physical bound
+    (the Dubins length driven at the acceleration and speed limits), and the plan at that earliest
+    arrival must be feasible. Prints the counts; returns them."""
+    from agnav_host.planning.timed._families import shortest_dubins_m
+
+    lim = TimedLimits()
+    rng = np.random.default_rng(seed)
+    start = BoundaryState(0.0, 0.0, 0.0)
+    counts = dict(goals=0, feasible_at_slack=0, refused_early=0, earliest_ge_bound=0, feasible_at_earliest=0)
+    kinds: dict[str, int] = {}
+    ratios = []
+    times = []
+    worst: tuple[float, tuple[float, float, float]] | None = None
+    for _ in range(n):
+        r = radius_m * math.sqrt(rng.uniform(0.0025, 1.0))  # uniform over the disc, at least 0.3 m away
+        b = rng.uniform(-math.pi, math.pi)
+        g = BoundaryState(r * math.cos(b), r * math.sin(b), rng.uniform(-math.pi, math.pi))
+        counts["goals"] += 1
+        L = shortest_dubins_m((0.0, 0.0, 0.0), (g.x_m, g.y_m, g.yaw_rad), lim.plan_kappa_max)
+        t0 = time.perf_counter()
+        p = plan_timed(start, g, 0.0, L / 0.8 + 3.0, lim)
+        times.append(time.perf_counter() - t0)
+        counts["feasible_at_slack"] += int(p.feasible)
+        kinds[p.path.kind.split(" ")[0]] = kinds.get(p.path.kind.split(" ")[0], 0) + 1
+        if not p.feasible and worst is None:
+            worst = (L, (g.x_m, g.y_m, math.degrees(g.yaw_rad)))
+        early = plan_timed(start, g, 0.0, 0.5 * r / 2.0, lim)
+        counts["refused_early"] += int(not early.feasible)
+        if early.earliest_arrival_s is not None:
+            bound = physical_bound_s(L, lim)
+            counts["earliest_ge_bound"] += int(early.earliest_arrival_s >= bound - 1e-9)
+            ratios.append(early.earliest_arrival_s / bound)
+            again = plan_timed(start, g, 0.0, early.earliest_arrival_s + 1e-3, lim)
+            counts["feasible_at_earliest"] += int(again.feasible)
+    tm = np.array(times) * 1e3
+    ra = np.array(ratios)
+    print(f"\n## Random goals ({n} poses within {radius_m:g} m, any heading, seed {seed}; the ref-003 car, forward only)\n")
+    print("| check | count |")
+    print("|---|---|")
+    print(f"| feasible at the shortest-path length / 0.8 m/s + 3 s | {counts['feasible_at_slack']} of {n} |")
+    print(f"| refused at half the straight-line time at 2 m/s | {counts['refused_early']} of {n} |")
+    print(f"| ... with an earliest arrival at or above the physical bound | {counts['earliest_ge_bound']} of {len(ra)} |")
+    print(f"| ... and a feasible plan at that earliest arrival | {counts['feasible_at_earliest']} of {len(ra)} |")
+    print(f"\npath types of the slack plans: {', '.join(f'{k} {v}' for k, v in sorted(kinds.items()))}; "
+          f"earliest / physical bound: median {np.median(ra):.3f}, max {ra.max():.3f}; plan_timed per goal: median "
+          f"{np.median(tm):.2f} ms, max {tm.max():.2f} ms" + ("" if worst is None else f"; first infeasible: {worst}"))
+    counts["ratio_max"] = float(ra.max()) if len(ra) else math.nan
+    return counts
+
+
 def _fmt(v: float | None, nd: int = 3) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{nd}f}"
 
@@ -426,7 +553,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sil", action="store_true", help="only the firmware-in-the-loop sections (timed scenarios x seeds, fleet)")
     ap.add_argument("--multi", action="store_true", help="with --sil: only the three-robot SIL fleet")
     ap.add_argument("--timing-repeats", type=int, default=3, help="runs of the single/multi cases for the replanning times")
+    ap.add_argument("--goals", type=int, default=1000, help="random goal poses for the path-family check (0: none)")
+    ap.add_argument("--goals-only", action="store_true", help="only the random-goal check")
     ns = ap.parse_args(argv)
+    if ns.goals_only:
+        t_wall = time.time()
+        random_goals_section(ns.goals)
+        print(f"wall time {time.time() - t_wall:.0f} s")
+        return 0
     seeds = list(range(ns.seeds))
     t_wall = time.time()
     if ns.sil:
@@ -456,6 +590,9 @@ def main(argv: list[str] | None = None) -> int:
         sm = p.summary()
         print(f"| {label} | {sm['feasible']} | {_fmt(sm['earliest_arrival_s'], 2)} | {sm['max_steering_deg']:.1f} | {sm['reason'][:90]} |")
 
+    if ns.goals > 0:
+        random_goals_section(ns.goals)
+
     cases: list[tuple[str, Scenario, dict[str, object]]] = [
         ("003 exp. case 1 straight 4 m / 20 s", parse_scenario(_straight_toml()), {}),
         ("timed_static (unknown boxes)", load_scenario("timed_static"), {}),
@@ -464,6 +601,7 @@ def main(argv: list[str] | None = None) -> int:
         ("timed_delay (15 % slow car)", load_scenario("timed_delay"), {}),
         ("timed_delay + 2 s safety stop at 5 s", load_scenario("timed_delay"), {"safety_stop": (5.0, 7.0)}),
         ("timed_gap (0.45 m between two crates, one against a wall)", load_scenario("timed_gap"), {}),
+        ("timed_uturn (U-turn goal, box + walker, tracker on the scans)", parse_scenario(UTURN_TOML), {}),
     ]
     if not ns.quick:
         cases.append(("003 case 1, 100 m, T = 75 s, unknown boxes", load_scenario("timed_003_case1"), {}))

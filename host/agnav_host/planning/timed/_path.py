@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...types import FloatArray, norm_angle_rad
-from ._poly import BoundaryState, hermite5_coeffs, poly003_coeffs
+from ._poly import BoundaryState
 
 __all__ = ["GeoPath", "build_path", "LAMBDA_SCALES"]
 
@@ -41,6 +41,21 @@ class GeoPath:
     s: FloatArray
     forms: tuple[str, ...]
     knots_s: tuple[float, ...]
+    #: the path family ("polynomial", "clothoid", "dubins", "reeds-shepp", or "a + b" over legs) and word
+    kind: str = "polynomial"
+    #: (n,) +1 where the car drives forward, -1 where it reverses (None: forward everywhere)
+    direction: FloatArray | None = None
+    #: (arc length m, wheel-turning time at rest s) where the car must stop: cusps and curvature jumps
+    stops: tuple[tuple[float, float], ...] = ()
+    #: top speed at which the servo's steering rate follows the path's curvature changes, m/s
+    speed_cap_m_s: float = math.inf
+
+    @property
+    def reverse_m(self) -> float:
+        """Length driven in reverse, m."""
+        if self.direction is None or len(self.s) < 2:
+            return 0.0
+        return float(np.sum(np.diff(self.s)[self.direction[1:] < 0]))
 
     @property
     def length_m(self) -> float:
@@ -94,15 +109,6 @@ class GeoPath:
         yaw = float(np.interp(s0, self.s, self.yaw))
         dx, dy = x_m - proj[k, 0], y_m - proj[k, 1]
         return s0, -dx * math.sin(yaw) + dy * math.cos(yaw)
-
-
-def _leg_coeffs(a: BoundaryState, b: BoundaryState, lam: float, wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
-    sa = BoundaryState(a.x_m, a.y_m, a.yaw_rad, a.steer_rad, lam)
-    sb = BoundaryState(b.x_m, b.y_m, b.yaw_rad, b.steer_rad, lam)
-    if form == "003":
-        cx, cy = poly003_coeffs(sa, sb, 1.0, wheelbase_m, min_cos=0.05)
-        return np.concatenate((cx, [0.0, 0.0])), cy  # pad the cubic to 6 coefficients
-    return hermite5_coeffs(sa, sb, 1.0, wheelbase_m)
 
 
 def _leg_candidates(a: BoundaryState, b: BoundaryState, lam: tuple[float, ...], wheelbase_m: float, form: str) -> tuple[FloatArray, FloatArray]:
@@ -218,7 +224,7 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
     x, y, kappa = np.concatenate(xs), np.concatenate(ys), np.concatenate(ks)
     h = np.concatenate(hs)
     dh = np.diff(h)
-    yaw = np.concatenate(([h[0]], h[0] + np.cumsum((dh + math.pi) % (2.0 * math.pi) - math.pi)))  # unwrapped
+    yaw = np.concatenate(([h[0]], h[0] + np.cumsum(norm_angle_rad(dh))))  # unwrapped
     seg = np.hypot(np.diff(x), np.diff(y))
     s = np.concatenate(([0.0], np.cumsum(seg)))
     ends = np.cumsum([len(h) for h in hs]) - 1

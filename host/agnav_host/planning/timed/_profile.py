@@ -107,14 +107,6 @@ class SpeedProfile:
             return True
         return bool(self.a_m_s2[k] < 0.0) and k + 1 < n and self.kind[k + 1] == "dwell"
 
-    def time_at(self, s_m: float) -> float:
-        """First time (relative) the profile reaches arc length ``s_m`` (its end time if never)."""
-        ts = np.linspace(0.0, self.duration_s, 400)
-        ss, _ = self.eval(ts)
-        i = int(np.searchsorted(ss, s_m))
-        return float(ts[min(i, len(ts) - 1)])
-
-
 def _ramp_d(v0: float, v1: float, a: float) -> float:
     return abs(v1 * v1 - v0 * v0) / (2.0 * a)
 

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_arr
+from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_rad
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec, arc_blocked
 from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
@@ -272,7 +272,7 @@ class TimedPlanner:
         assert self.plan is not None
         sen = self._sensor_pose(obs)
         rel = pts - np.array([sen.x_m, sen.y_m])
-        b_rel = norm_angle_arr(np.arctan2(rel[:, 1], rel[:, 0]) - sen.yaw_rad)
+        b_rel = norm_angle_rad(np.arctan2(rel[:, 1], rel[:, 0]) - sen.yaw_rad)
         order = np.argsort(b_rel)
         clusters = cluster_ordered(pts[order], 0.3)
         dist = np.hypot(rel[:, 0], rel[:, 1])
