@@ -35,7 +35,7 @@ from .perception._health import LaserWatchdog
 from .types import DriveCommand, Goal, LaserScan, Observation, Pose2D, SonarFrame
 
 __all__ = ["SensorFrame", "OdometryReport", "Decision", "HostLoop", "Localiser", "controller_needs",
-           "firmware_setpoint", "TURN_SPEED_M_S"]
+           "firmware_setpoint", "TURN_SPEED_M_S", "SLOW_SHARE"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,8 @@ class Decision:
     step_s: float = 0.0
     event: str = ""  # something worth a log line and a STATUSTEXT (a laser fault, a goal reached)
     idle: str = ""  # why there is no command: "no pose yet", "no new scan"
+    pose_sigma: tuple[float, float, float] | None = None  # the localiser's 1-sigma x, y (m), yaw (rad)
+    localisation: str = ""  # the localiser's state when it reports one: "ok", "slow", "lost"
 
 
 class Localiser(Protocol):
@@ -97,6 +99,17 @@ class Localiser(Protocol):
     def scan(self, ranges_m: Any, angles_rad: Any, t_s: float, range_max_m: float = math.inf) -> int: ...
 
     def pose_at(self, t_s: float) -> Pose2D: ...
+
+
+#: the command's share while the localisation is uncertain (``slow``)
+SLOW_SHARE = 0.5
+
+
+def _sigma(loc: Any) -> tuple[float, float, float] | None:
+    sig = getattr(loc, "sigma", None)
+    if sig is None and getattr(loc, "filter", None) is not None:
+        sig = getattr(loc.filter, "sigma", None)
+    return tuple(float(v) for v in sig) if sig is not None else None  # type: ignore[return-value]
 
 
 def controller_needs(ctrl: Any) -> frozenset[str]:
@@ -133,6 +146,7 @@ class HostLoop:
         self.goal_index = 0
         self._extras: dict[str, object] = {"goals": list(self.goals), "goal_index": 0, **(extras or {})}
         self._faults_said = 0
+        self._loc_state = "ok"
         self.steps = 0
         controller.reset()
 
@@ -141,6 +155,33 @@ class HostLoop:
         return self.goals[min(self.goal_index, len(self.goals) - 1)]
 
     def step(self, f: SensorFrame) -> Decision:
+        """One control step (see the module docstring). A localiser that reports a state (``status()``:
+        ``ok`` / ``slow`` / ``lost`` and why) slows the command to :data:`SLOW_SHARE` while ``slow`` and holds
+        the robot while ``lost``; each change of state is an event. The Decision carries the localiser's
+        pose sigma."""
+        d = self._step(f)
+        loc = self.localiser
+        if loc is None:
+            return d
+        status = getattr(loc, "status", None)
+        extra: dict[str, Any] = {"pose_sigma": _sigma(loc) if d.pose is not None else None}
+        if status is not None and d.pose is not None:
+            state, why = status()
+            extra["localisation"] = state
+            if state != self._loc_state:
+                text = {"ok": "localisation recovered; driving on",
+                        "slow": f"localisation uncertain ({why}); slowing down",
+                        "lost": f"localisation lost ({why}); holding the robot, re-localising"}.get(state, state)
+                extra["event"] = f"{d.event}; {text}" if d.event else text
+                self._loc_state = state
+            if state == "lost" and not d.hold and not d.arrived:
+                extra.update(command=DriveCommand(), hold="localisation lost; re-localising")
+            elif state == "slow" and d.command is not None and not d.hold:
+                c = d.command
+                extra["command"] = DriveCommand(c.speed_m_s * SLOW_SHARE, c.yaw_rate_rad_s * SLOW_SHARE, c.steer_rad)
+        return replace(d, **extra)
+
+    def _step(self, f: SensorFrame) -> Decision:
         t = f.t_s
         if f.goal_index is not None:
             self.goal_index = f.goal_index

@@ -94,8 +94,9 @@ def latency_summary(latency_s: list[float]) -> dict[str, float | int | None]:
 class RunOutputs:
     """The ``--out`` folder of a robot run, written as the run goes: ``trajectory.csv`` (the planned pose,
     appended every step), ``laser.alog`` (every scan of every laser, :mod:`agnav_host.lasers.log`),
-    ``recording.rrd`` (rerun, streamed to disk) and, at the end, ``summary.json`` (the keys of ``agnav sim``),
-    ``run_info.json`` and ``trajectory.png``."""
+    ``recording.rrd`` (rerun, streamed to disk), ``localisation.csv`` (with a localiser: its state and pose sigma
+    every step) and, at the end, ``summary.json`` (the keys of ``agnav sim``), ``run_info.json`` and
+    ``trajectory.png``."""
 
     def __init__(self, out: str | Path | None, rrd: str | Path | None = None) -> None:
         from .lasers.log import LaserLogWriter
@@ -109,6 +110,7 @@ class RunOutputs:
             self._traj = open(self.dir / "trajectory.csv", "w", encoding="utf-8")
             self._traj.write(",".join(TRAJECTORY_COLUMNS) + "\n")
             self.log = LaserLogWriter(self.dir / "laser.alog")
+        self._loc: Any = None  # localisation.csv, opened on the first step with a localiser
         self._declared: set[int] = set()
         self.rec: Any = None
         self.rrd = Path(rrd) if rrd is not None else None
@@ -143,6 +145,15 @@ class RunOutputs:
             if state is not None and state.behaviour is not None:
                 self.rec.log_behaviour(state.behaviour)
 
+    def localisation(self, t_s: float, state: str, sigma: tuple[float, float, float]) -> None:
+        """A row of ``localisation.csv``: the localiser's state and its pose sigma (x m, y m, yaw rad)."""
+        if self.dir is None:
+            return
+        if self._loc is None:
+            self._loc = open(self.dir / "localisation.csv", "w", encoding="utf-8")
+            self._loc.write("t_s,state,sigma_x_m,sigma_y_m,sigma_yaw_rad\n")
+        self._loc.write(f"{t_s:.3f},{state or '-'},{sigma[0]:.5f},{sigma[1]:.5f},{sigma[2]:.6f}\n")
+
     def text(self, t_s: float, text: str, level: str = "INFO") -> None:
         if self.rec is not None:
             self.rec.set_time(t_s)
@@ -161,6 +172,9 @@ class RunOutputs:
         self._traj.close()
         self.log.close()
         written += [self.dir / "trajectory.csv", self.dir / "laser.alog"]
+        if self._loc is not None:
+            self._loc.close()
+            written.append(self.dir / "localisation.csv")
         rows = np.array(self.rows, dtype=float) if self.rows else np.zeros((1, len(TRAJECTORY_COLUMNS)))
         last = settings.goals[-1]
         arrived = outcome.reason == "arrived"
@@ -408,3 +422,5 @@ class RobotRun:
             speed = st.pose.speed_m_s if st.pose is not None else 0.0
             yr = st.pose.yaw_rate_rad_s if st.pose is not None else 0.0
             o.step(t, pose, speed, yr, self._clearance(last_scan), self.loop.goal_index, st)
+            if d.pose_sigma is not None:
+                o.localisation(t, d.localisation, d.pose_sigma)

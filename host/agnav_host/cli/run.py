@@ -28,7 +28,7 @@ _sleep = time.sleep  # the run's pacing (tests replace it to inject Ctrl-C)
 
 #: What `agnav run --out DIR` writes (the files of an earlier run there are removed first).
 RUN_OUTPUTS = ("summary.json", "run_info.json", "trajectory.csv", "trajectory.png", "recording.rrd", "laser.alog",
-               "link.tlog")
+               "link.tlog", "localisation.csv")
 
 
 class _FirmwareGoal:
@@ -52,6 +52,11 @@ class _FirmwareGoal:
         self.robot.set_goal(self.x_m, self.y_m)
         self.sent_s = now_s
 
+    def again(self, now_s: float) -> None:
+        """The goal once more, as at the start (after a link loss the firmware does not use its stored one)."""
+        self.seeking = False
+        self._send(now_s)
+
     def reached(self, st: Any, now_s: float) -> bool:
         b = st.behaviour
         fresh = b is not None and b.rx_time_s > self.sent_s
@@ -65,6 +70,27 @@ class _FirmwareGoal:
         p = st.pose
         near = p is not None and math.hypot(p.x_m - self.x_m, p.y_m - self.y_m) <= self.tol_m + 0.05
         return self.seeking or near
+
+
+class _LinkBack:
+    """True once each time the link comes back: the firmware reported a LINK_LOSS failsafe, then a status
+    that is no failsafe. The firmware then holds its goal and follow-wall layers until a fresh command
+    (docs/safety.md "Failsafe hold"), so the run sends its behaviours and goal again."""
+
+    def __init__(self) -> None:
+        self.lost = False
+        self.seen_s = -math.inf
+
+    def __call__(self, st: Any) -> bool:
+        b = st.behaviour
+        if b is None or b.rx_time_s <= self.seen_s:
+            return False
+        self.seen_s = b.rx_time_s
+        if b.layer == 1:  # FAILSAFE
+            self.lost = self.lost or b.reason == 2  # LINK_LOSS
+            return False
+        back, self.lost = self.lost, False
+        return back
 
 
 def _status_line(ep: Any, t: float) -> str:
@@ -162,7 +188,8 @@ def field_from(ns: argparse.Namespace, cfg: Any) -> Any:
     return FieldDescription(row_side=ns.row_side or f.row_side,
                             row_offset_m=ns.row_offset if ns.row_offset is not None else f.row_offset_m,
                             row_half_width_m=ns.row_half_width if ns.row_half_width is not None else f.row_half_width_m,
-                            row_method=ns.row_method or f.row_method, first_turn=side, lanes_per_turn=lanes)
+                            row_method=ns.row_method or f.row_method, first_turn=side, lanes_per_turn=lanes,
+                            pattern=getattr(ns, "pattern", None) or "")
 
 
 def robot_spec_from(params: dict[str, float], cfg: Any, control_dt_s: float) -> Any:
@@ -272,6 +299,24 @@ def _cmd_run(ns: argparse.Namespace) -> int:
     if landmarks is not None and "laser" not in roles:
         _err("run", "--landmarks: localising on posts needs the horizontal laser (--laser URL)")
         return 2
+    localise = getattr(ns, "localise", None)
+    if localise in ("scan", "posts") and "laser" not in roles:
+        _err("run", f"--localise {localise}: localising needs the horizontal laser (--laser URL)")
+        return 2
+    if localise == "posts" and landmarks is None:
+        _err("run", "--localise posts needs the surveyed posts (--landmarks FILE)")
+        return 2
+    if getattr(ns, "map", None) is not None:
+        if localise != "scan":
+            _err("run", "--map is for --localise scan")
+            return 2
+        from ..localisation.occupancy import load_map
+
+        try:  # an unreadable map fails before the link is opened
+            load_map(ns.map)
+        except (ValueError, OSError) as e:
+            _err("run", f"--map {ns.map}: {getattr(e, 'strerror', None) or e}")
+            return 2
     out_dir = None
     if ns.out:
         bad = unusable_out_dir(ns.out) or clear_earlier_outputs("run", ns.out, RUN_OUTPUTS, False)
@@ -339,6 +384,7 @@ def _firmware_layers(ns: argparse.Namespace, cfg: Any, goals: list[Any]) -> int:
         period = 1.0 / cfg.run.control_hz
         next_status = 0.0
         last_layer = None
+        link_back = _LinkBack()
         while True:
             loop_t = time.monotonic()
             t = loop_t - t0
@@ -346,6 +392,14 @@ def _firmware_layers(ns: argparse.Namespace, cfg: Any, goals: list[Any]) -> int:
                 print("duration reached")
                 break
             st = ep.state
+            if link_back(st):
+                print(f"link back at t={t:.1f} s: behaviours{' and goal' if fw_goal else ''} sent again", flush=True)
+                try:
+                    robot.set_behaviours(follow_wall=ns.follow_wall, goal_seek=goal is not None, avoid=not ns.no_avoid)
+                except Exception as e:  # noqa: BLE001 -- the next link loss and recovery tries again
+                    _err("run", f"behaviours not confirmed after the link came back ({e})")
+                if fw_goal is not None:
+                    fw_goal.again(time.monotonic())
             if fw_goal is not None and fw_goal.reached(st, time.monotonic()):
                 print(f"goal reached (firmware) at t={t:.1f} s")
                 break
@@ -458,8 +512,12 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
         except ValueError as e:
             _err("run", str(e))
             return 2
-        localiser = None
-        if landmarks is not None and laser is not None:
+        localiser: Any = None
+        if getattr(ns, "localise", None) == "scan" and laser is not None:  # scan matching, no posts needed
+            from ..localisation.scan_localiser import scan_localiser_for
+
+            localiser = scan_localiser_for(start, laser.mount.pose, ns.map)
+        elif landmarks is not None and laser is not None and getattr(ns, "localise", None) != "odometry":
             from ..localisation import localiser_for
 
             localiser = localiser_for({"landmarks": landmarks}, start, laser.mount.pose)
@@ -585,9 +643,19 @@ subcommand("run", help="drive a robot (or a SIL over tcp:) with any controller, 
                (("--turns",), {"default": None, "metavar": "SIDE[,N]",
                                "help": "field: headland turn pattern, first turn side and lanes per turn (default: "
                                        "[field] turns, left,1)"}),
+               (("--pattern",), {"default": None, "metavar": "S-1L-2R-F",
+                                 "help": "field: the row navigator's turn pattern in the Field Robot Event's notation "
+                                         "(S start, nL / nR the n-th lane to the left / right, F finish: stop), "
+                                         "instead of --turns"}),
                (("--landmarks",), {"default": None, "metavar": "FILE",
                                    "help": "surveyed marker posts to localise on, CSV x_m,y_m,radius_m (default: [run] "
                                            "landmarks_file; none = odometry)"}),
+               (("--localise",), {"choices": ["scan", "posts", "odometry"], "default": None,
+                                  "help": "how the host localises: scan (laser scan matching against --map or a map "
+                                          "built online), posts (--landmarks), odometry (none); default: posts when "
+                                          "--landmarks is given, else odometry"}),
+               (("--map",), {"default": None, "metavar": "FILE.yaml",
+                             "help": "a saved map (map_server YAML + PGM, e.g. from agnav slam) for --localise scan"}),
                (("--autopilot",), {"choices": ["agnav", "ardupilot"], "default": "agnav",
                                    "help": "agnav firmware (default) or a stock ArduPilot Rover"}),
                (("--duration",), {"type": positive_float, "default": None,

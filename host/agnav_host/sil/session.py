@@ -209,7 +209,7 @@ class SilSession:
                 now = fw.time_us
                 continue
             last = nxt is None or nxt > t1
-            target = t1 if last else nxt
+            target = t1 if last or nxt is None else nxt
             if self._uart_pending:
                 target = min(target, now + 1000)  # 1 ms of firmware, then offer the waiting bytes again
                 last = last and target == t1
@@ -266,7 +266,8 @@ class PlannerHost:
 
     def __init__(self, sc: Scenario, planner: str = "goal_seek", heartbeat_hz: float = 2.0,
                  control_hz: float | None = None, behaviours: tuple[bool, bool, bool] | None = None,
-                 controller: Controller | None = None) -> None:
+                 controller: Controller | None = None, localise: str | None = None,
+                 map_yaml: str | None = None) -> None:
         from ..hostloop import HostLoop
         from ..perception._health import LaserWatchdog
         from ..sim.field_controllers import make_scenario_controller
@@ -286,13 +287,20 @@ class PlannerHost:
         self.behaviours = behaviours
         self.commands: list[tuple[int, DriveCommand]] = []
         self.max_steer_rad = math.radians(45.0 if sc.robot_kind != "ackermann" else 30.0)  # MAX_STEER_CDEG
-        # surveyed marker posts in the scenario (meta.landmarks) and a laser: odometry fused with the
-        # posts the laser sees (agnav_host.localisation) instead of odometry alone
+        # how the host localises (``localise``, else the scenario's meta.localise): ``scan`` (scan matching
+        # against ``map_yaml`` or a map built online), ``posts`` (the surveyed marker posts, meta.landmarks),
+        # ``odometry``; by default the posts when the scenario lists them and has a laser, else odometry
         self.localiser = None
-        if sc.laser is not None and sc.meta.get("landmarks"):
+        localise = localise or sc.meta.get("localise")
+        if localise is not None:
+            from ..sim.runner import make_localiser
+
+            self.localiser = make_localiser(sc, str(localise), map_yaml or sc.meta.get("map"))
+        elif sc.laser is not None and sc.meta.get("landmarks"):
             from ..localisation import localiser_for
 
             self.localiser = localiser_for(sc.meta, sc.start, sc.laser.mount)
+        self.last_pose: tuple[Pose2D, Pose2D] | None = None  # (planned, true) at the last control step
         self._odo_stamp_ms = -1
         # The laser is checked before anything plans on it (perception._health); a fault holds the
         # robot with zero setpoints until the laser is healthy again. laser_fault (tests and the
@@ -374,6 +382,8 @@ class PlannerHost:
             return
         self.next_ctrl += self.ctrl_us
         d = self.loop.step(self.frame(s))
+        if d.pose is not None:
+            self.last_pose = (d.pose, s.pose)
         if d.event:
             self.events.append((t_us, d.event))
         if d.command is None:
@@ -398,16 +408,18 @@ class SilRunResult:
 def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, duration_s: float | None = None,
                      goal: Goal | None = None, config: SilConfig | None = None,
                      progress: Callable[[float, float], None] | None = None,
-                     controller: Controller | None = None) -> SilRunResult:
+                     controller: Controller | None = None, localise: str | None = None,
+                     map_yaml: str | None = None) -> SilRunResult:
     """The ideal runner's scenario loop with the real firmware in the loop (same metrics and
     end reasons: arrived, collision, fell_in_hole, timeout). ``controller``: a controller built by the
-    caller instead of the named ``planner`` (which then only labels the run)."""
+    caller instead of the named ``planner`` (which then only labels the run). ``localise`` / ``map_yaml``: how
+    the host localises (:class:`PlannerHost`)."""
     import time
 
     if goal is not None:
         sc = replace(sc, goals=[goal])
     duration = sc.duration_s if duration_s is None else duration_s
-    host = PlannerHost(sc, planner, controller=controller)
+    host = PlannerHost(sc, planner, controller=controller, localise=localise, map_yaml=map_yaml)
     s = SilSession(sc, seed, config, host)
     wall0 = time.perf_counter()
     try:
@@ -439,7 +451,9 @@ def run_sil_scenario(sc: Scenario, planner: str = "goal_seek", seed: int = 0, du
         metrics = RunMetrics.compute(arr[:, 0], arr[:, 1:3], arr[:, 3], arr[:, 4], arr[:, 5], arr[:, 6],
                                      (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, referee.reason == "arrived",
                                      referee.arrival_s, field=referee.field_score())
-        run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason, scene=sc)
+        run = RunResult(sc.name, planner, seed, metrics, arr, referee.reason, scene=sc,
+                        believed=host.last_pose if host.localiser is not None else None,
+                        events=[(t_us * 1e-6, e) for t_us, e in host.events])
         status = [(st.t_us * 1e-6, st.time_boot_ms, st.layer, st.reason, st.failsafe_flags, st.steer_cdeg, st.speed_mm_s)
                   for st in s.host.status_log]
         stats = {"up_frames": s.up.frames_sent, "up_lost": s.up.frames_lost, "up_dropped": s.up.frames_dropped,

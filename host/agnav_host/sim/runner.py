@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ..atomic import savefig_atomic, write_atomic
-from ..hostloop import HostLoop, SensorFrame
+from ..hostloop import HostLoop, OdometryReport, SensorFrame
 from ..types import DriveCommand, Goal, SonarFrame
 
 if TYPE_CHECKING:
@@ -27,7 +27,7 @@ from .referee import HOLE_FALL_DEPTH_M, Referee
 from .robots import AckermannParams
 from .scenario import Scenario, run_length_problem
 
-__all__ = ["RunResult", "run_scenario", "control_every", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
+__all__ = ["RunResult", "run_scenario", "LOCALISERS", "DriftingOdometry", "make_localiser", "control_every", "write_outputs", "robot_spec", "planner_names", "TRAJECTORY_COLUMNS", "HOLE_FALL_DEPTH_M"]
 
 TRAJECTORY_COLUMNS = ("t_s", "x_m", "y_m", "yaw_rad", "speed_m_s", "yaw_rate_rad_s", "clearance_m", "goal_index")
 
@@ -44,6 +44,8 @@ class RunResult:
     end_reason: str  # "arrived", "collision", "fell_in_hole", "timeout"
     step_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # wall time of each planner step, s
     scene: Scenario | None = None  # the scenario as run (its goals replaced when a goal was given): trajectory.png's world
+    believed: Any = None  # (believed, true): the host's last planned pose and the true one then (``localise``)
+    events: list[tuple[float, str]] = field(default_factory=list)  # (t_s, text): the host loop's events
 
 
 def planner_names() -> list[str]:
@@ -117,6 +119,60 @@ def _standin_params(sc: Scenario) -> GoalSeekParams:
     return from_spec(robot_spec(sc))
 
 
+LOCALISERS = ("scan", "posts", "odometry")
+
+
+class DriftingOdometry:
+    """Wheel odometry of the simulated robot, in the odometry frame (the start pose at the origin): the true
+    speed and yaw rate integrated with a distance scale error ``scale``, a yaw-rate scale error ``yaw_scale``
+    and white noise per step (``speed_sd`` m/s, ``yaw_rate_sd`` rad/s)."""
+
+    def __init__(self, rng: np.random.Generator, scale: float = 1.01, yaw_scale: float = 0.98,
+                 speed_sd: float = 0.01, yaw_rate_sd: float = 0.01) -> None:
+        from ..types import Pose2D
+
+        self.rng, self.scale, self.yaw_scale = rng, scale, yaw_scale
+        self.speed_sd, self.yaw_rate_sd = speed_sd, yaw_rate_sd
+        self.pose = Pose2D()
+        self.v = self.w = 0.0
+
+    def advance(self, speed_m_s: float, yaw_rate_rad_s: float, dt_s: float) -> None:
+        from ..types import Pose2D
+        from .robots import integrate_arc
+
+        moving = abs(speed_m_s) > 1e-4 or abs(yaw_rate_rad_s) > 1e-4
+        n = self.rng.normal(0.0, 1.0, 2) if moving else np.zeros(2)
+        self.v = speed_m_s * self.scale + n[0] * self.speed_sd
+        self.w = yaw_rate_rad_s * self.yaw_scale + n[1] * self.yaw_rate_sd
+        x, y, yaw = integrate_arc(self.pose.x_m, self.pose.y_m, self.pose.yaw_rad, self.v, self.w, dt_s)
+        self.pose = Pose2D(x, y, yaw)
+
+    def report(self, t_s: float, robot: object) -> "OdometryReport":
+        return OdometryReport(self.pose.x_m, self.pose.y_m, self.pose.yaw_rad, t_s, self.v, self.w)
+
+
+def make_localiser(sc: Scenario, localise: str, map_yaml: str | None = None) -> Any:
+    """The host's localiser for ``sc`` by name (:data:`LOCALISERS`); None for ``odometry``. Raises ValueError for
+    an unknown name, a scenario without a laser, ``posts`` without ``meta.landmarks``, or a map that cannot be
+    read."""
+    if localise not in LOCALISERS:
+        raise ValueError(f"unknown localiser {localise!r}; known: {', '.join(LOCALISERS)}")
+    if localise == "odometry":
+        return None
+    if sc.laser is None:
+        raise ValueError(f"localising on {localise} needs the scenario's horizontal laser")
+    if localise == "posts":
+        from ..localisation import localiser_for
+
+        loc = localiser_for(sc.meta, sc.start, sc.laser.mount)
+        if loc is None:
+            raise ValueError("localising on posts needs the scenario's surveyed posts (meta.landmarks)")
+        return loc
+    from ..localisation.scan_localiser import scan_localiser_for
+
+    return scan_localiser_for(sc.start, sc.laser.mount, map_yaml)
+
+
 def run_scenario(
     sc: Scenario,
     planner: str = "goal_seek",
@@ -125,6 +181,8 @@ def run_scenario(
     goal: Goal | None = None,
     progress: Callable[[float, float], None] | None = None,
     controller: Controller | None = None,
+    localise: str | None = None,
+    map_yaml: str | None = None,
 ) -> RunResult:
     """Simulate ``sc`` with the named controller: a stand-in (``goal_seek``) or a host planner from
     agnav_host.planning (``flb``, ``him``, ...; parameters from the scenario's ``[meta.planner_params.NAME]``).
@@ -137,6 +195,11 @@ def run_scenario(
     named one; ``planner`` is then only its label. A scenario's tilted laser (``[tilted_laser]``) is scanned
     at every control step for a controller whose ``uses_tilted_laser`` is true, into
     ``obs.extras['tilted_scan']`` (a LaserScan; ``ground_points`` of the sensor turns it into 3-D points).
+
+    ``localise`` (None: the controller gets the true pose): the host plans on wheel odometry (the true motion
+    with :class:`DriftingOdometry`'s errors) fused by a localiser: ``scan`` (scan matching against ``map_yaml``
+    or a map built online, :mod:`agnav_host.localisation.scan_localiser`), ``posts`` (the scenario's
+    ``meta.landmarks``), ``odometry`` (none); a scenario's ``meta.localise`` (and ``meta.map``) when None.
     """
     if goal is not None:
         sc = replace(sc, goals=[goal])
@@ -150,13 +213,20 @@ def run_scenario(
     static: dict[str, object] = {"meta": sc.meta}
     if "path" in sc.meta:
         static["path"] = np.asarray(sc.meta["path"], dtype=float)
+    if localise is None and sc.meta.get("localise") is not None:  # the scenario says how its host localises
+        localise, map_yaml = str(sc.meta["localise"]), map_yaml or sc.meta.get("map")
+    localiser = make_localiser(sc, localise, map_yaml) if localise is not None else None
     loop = HostLoop(ctrl, list(sc.goals), laser_mount=sc.laser.mount if sc.laser is not None else None,
-                    tilted_mount=sc.tilted_laser.mount if sc.tilted_laser is not None else None, extras=static)
+                    tilted_mount=sc.tilted_laser.mount if sc.tilted_laser is not None else None, extras=static,
+                    localiser=localiser)
     use_tilted = sc.tilted_laser is not None and "tilted_laser" in loop.needs
     sonar_slots = _SonarSlots(sc) if sc.sonar is not None and "sonar" in loop.needs else None
     times: list[float] = []
+    events: list[tuple[float, str]] = []
+    believed = None
     ss = np.random.SeedSequence(seed)
     rng_robot, rng_laser, rng_sonar, rng_tilted = (np.random.default_rng(s) for s in ss.spawn(4))  # first 3 as before
+    odo = DriftingOdometry(np.random.default_rng(ss.spawn(1)[0])) if localise is not None else None
     robot = sc.make_robot()
     world = sc.world
     dt = sc.dt_s
@@ -177,18 +247,26 @@ def run_scenario(
     for k in range(1, n_steps + 1):
         t_prev = (k - 1) * dt
         if (k - 1) % ctrl_every == 0:
-            # the simulator's sources: the true pose (an ideal pose source), the scans cast from it
+            # the simulator's sources: the true pose (an ideal pose source) or the odometry, the scans cast from
+            # the true pose
             frame = SensorFrame(
-                t_prev, robot.pose, robot.speed_m_s, robot.yaw_rate_rad_s,
+                t_prev, robot.pose if odo is None else sc.start.compose(odo.pose), robot.speed_m_s,
+                robot.yaw_rate_rad_s, odometry=odo.report(t_prev, robot) if odo is not None else None,
                 scan=sc.laser.scan(world, robot.pose, t_prev, rng_laser) if sc.laser is not None else None,
                 tilted_scan=sc.tilted_laser.scan(world, robot.pose, t_prev, rng_tilted) if use_tilted else None,  # type: ignore[union-attr]
                 sonar=sonar_slots.frame(world, robot.pose, t_prev, rng_sonar) if sonar_slots is not None else None,
                 goal_index=gi)
             decision = loop.step(frame)
+            if decision.event:
+                events.append((t_prev, decision.event))
+            if decision.pose is not None:
+                believed = (decision.pose, robot.pose)
             if decision.command is not None:
                 cmd = decision.command
             times.append(decision.step_s)
         robot.step(cmd, dt, rng_robot)
+        if odo is not None:
+            odo.advance(robot.speed_m_s, robot.yaw_rate_rad_s, dt)
         t = k * dt
         cl = clearance(t)
         p = robot.pose
@@ -204,7 +282,8 @@ def run_scenario(
         rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6], (last.x_m, last.y_m),
         last.yaw_rad, last.arrival_s, referee.reason == "arrived", referee.arrival_s, field=referee.field_score(),
     )
-    return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times), sc)
+    return RunResult(sc.name, planner, seed, metrics, rows, referee.reason, np.asarray(times), sc,
+                     believed if localise is not None else None, events)
 
 
 def write_outputs(result: RunResult, out_dir: str | Path, plot: bool = True) -> list[Path]:
@@ -245,6 +324,9 @@ def write_row_distance(rd: RowDistance, out_dir: str | Path, plot: bool = True) 
     if plt is not None:
         fig, ax = plt.subplots(figsize=(9, 3))
         ax.axhspan(rd.set_m - rd.band_m, rd.set_m + rd.band_m, color="0.9", label=f"{rd.set_m:g} +- {rd.band_m:g} m")
+        if rd.planted_m is not None:
+            ax.plot(rd.travel_m, rd.planted_m, "g-", lw=1,
+                    label=f"distance from the row as planted (stems over {rd.planted_window_m:g} m)")
         ax.plot(rd.travel_m, rd.distance_m, "b-", lw=1, label="distance from the row's design line")
         ax.set_xlabel("travel, m")
         ax.set_ylabel("m")

@@ -1,0 +1,78 @@
+"""Laser localisation in the host loop without surveyed posts (``--localise scan``): the host plans on wheel
+odometry fused by scan matching against a map built online. Prints a markdown table of the host pose's error
+from the true pose at the end of each run, and the distance driven.
+
+* the simulator: greenhouse_cycles (ten cycles of the benches), on the simulator's drifting odometry, and on the
+  same odometry alone; the 50 m curvy_row followed with the proximity follower (repetitive geometry along
+  the rows);
+* the SIL (the real firmware's odometry): greenhouse_cycles, and the timed scenarios with the posts taken out
+  of the host's map (``bench_timed.run_sil``: final error, heading, arrival against 0.05 m, 2 deg, 0.2 s).
+
+Usage: ``.venv/bin/python bench/bench_scan_localiser.py [--only sim,rows,sil,timed]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def _path_m(traj: np.ndarray) -> float:
+    return float(np.hypot(*np.diff(traj[:, 1:3], axis=0).T).sum())
+
+
+def _row(label: str, run) -> None:  # type: ignore[no-untyped-def]
+    b, p = run.believed
+    err = math.hypot(b.x_m - p.x_m, b.y_m - p.y_m)
+    yaw = math.degrees(abs(math.remainder(b.yaw_rad - p.yaw_rad, 2 * math.pi)))
+    dist = _path_m(run.trajectory)
+    print(f"| {label} | {run.end_reason} | {dist:.1f} | {err:.4f} | {yaw:.3f} | {100 * err / max(dist, 1e-9):.3f} |")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="sim,rows,sil,timed")
+    ns = ap.parse_args(argv)
+    only = set(ns.only.split(","))
+    from agnav_host.sim.runner import run_scenario
+    from agnav_host.sim.scenario import load_scenario
+
+    print("| run | end | driven m | host pose error at the end m | heading error deg | error / distance % |")
+    print("|---|---|---|---|---|---|")
+    if "sim" in only:
+        sc = load_scenario("greenhouse_cycles")
+        for loc in ("scan", "odometry"):
+            _row(f"simulator, greenhouse_cycles, him, --localise {loc}", run_scenario(sc, "him", 0, localise=loc))
+    if "rows" in only:
+        for name, dur in (("curvy_row", 200.0),):
+            _row(f"simulator, {name}, proximity, --localise scan",
+                 run_scenario(load_scenario(name), "proximity", 0, dur, localise="scan"))
+    if "sil" in only:
+        from agnav_host.sil.session import run_sil_scenario
+
+        res = run_sil_scenario(load_scenario("greenhouse_cycles"), "him", 0, localise="scan")
+        _row("SIL, greenhouse_cycles, him, --localise scan", res.run)
+    if "timed" in only:
+        import bench_timed as bt
+
+        print("\n| timed SIL, posts out of the host's map, --localise scan | arrived | arrival err s | final pos err m "
+              "| final hdg err deg | host pose err max m (driving) | odometry drift at end m |")
+        print("|---|---|---|---|---|---|---|")
+        for nm in bt.SIL_SCENARIOS:
+            sc = bt._scenario(nm)
+            sc = replace(sc, meta={**{k: v for k, v in sc.meta.items() if k != "landmarks"}, "localise": "scan"})
+            r = bt.run_sil(sc, 0, localise=True)
+            print(f"| {nm} | {r.arrived} | {bt._fmt(r.arrival_err_s, 2)} | {r.final_pos_err_m:.3f} | "
+                  f"{r.final_hdg_err_deg:.2f} | {r.loc_err_max_m:.3f} | {r.odo_drift_final_m:.3f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
