@@ -18,7 +18,7 @@ APT_PACKAGES := gcc-avr avr-libc avrdude simavr libsimavr-dev libelf-dev \
                 gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm \
                 binutils-avr pkg-config clang libclang-rt-dev
 
-.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil faults fuzz clean
+.PHONY: help setup apt venv tools demo test test-host test-firmware test-sil sil size bench bench-sil faults attacks fuzz clean
 
 help:
 	@echo "make demo   - install what is missing, run the default mission (output in out/demo)"
@@ -28,6 +28,7 @@ help:
 	@echo "make bench  - benchmarks (figures go to BENCHMARKS.md by hand)"
 	@echo "make fuzz SECONDS=N - libFuzzer on the firmware's MAVLink link for N s (needs clang)"
 	@echo "make faults - fault-injection suite: fault, expected reaction, measured reaction, pass/fail"
+	@echo "make attacks - attacks from a MAVLink client on the served SIL: attack, tries, refused, moved, crashed"
 
 setup: apt venv tools
 
@@ -83,6 +84,12 @@ bench-sil: setup sil
 # measured reaction; the markdown table goes to bench/results/faults.md (RELIABILITY.md cites it).
 faults: setup sil
 	$(VENV)/bin/agnav faults --markdown bench/results/faults.md
+
+# Attacks from outside: a MAVLink client of its own (not the project's link classes) against
+# `agnav sil fault_yard --tcp` in a subprocess, motion judged on the simulator's true pose; the markdown
+# table (attack, tries, refused, moved, crashed, target, met) goes to bench/results/attacks.md.
+attacks: setup sil
+	$(PY) -m agnav_host.faults.attacks --markdown bench/results/attacks.md
 
 # libFuzzer + ASan + UBSan on the firmware's MAVLink parser and handlers (firmware/fuzz/): builds
 # with clang into build/fuzz, runs SECONDS (default 60; MODE=all|both|crc|raw|signed, WORKERS=1) and prints

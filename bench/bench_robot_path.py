@@ -104,8 +104,8 @@ def main() -> int:
             print(f"| {name} | {scen}, {ctrl} | {lasers} | {k} | {fmt(a[k])} | {fmt(b.get(k))} | {TARGETS[name]} |")
     print("\n| case | scanners | scans | laser to command, median ms | 99th percentile ms | scan to loop, median ms | controller step, median ms |")
     print("|---|---|---|---|---|---|---|")
-    for name, lasers, l, w, st in lat:
-        print(f"| {name} | {lasers} | {l.get('scans')} | {fmt(l.get('median_ms'))} | {fmt(l.get('p99_ms'))} | "
+    for name, lasers, lt, w, st in lat:
+        print(f"| {name} | {lasers} | {lt.get('scans')} | {fmt(lt.get('median_ms'))} | {fmt(lt.get('p99_ms'))} | "
               f"{fmt(w.get('median_ms'))} | {fmt(st.get('median_ms'))} |")
     print(f"\nruns kept in {out}", file=sys.stderr)
     return 0

@@ -4,6 +4,7 @@
 #   pio test native   firmware unit tests on the PC (ASan + UBSan)
 #   pio test megaatmega2560   the same tests on the ATmega2560 under simavr
 #   pio test stm32f405        the same tests on the STM32F405 under QEMU netduinoplus2
+#   static checks     ruff check and mypy --strict (tools/static_checks.py), one case each
 # Called by `make test` (after `make setup`) and by .ci/run.
 set -u
 cd "$(dirname "$0")/.."
@@ -21,6 +22,9 @@ done
 
 echo "=== host and hil tests: pytest ==="
 .venv/bin/pytest -q --junitxml="$REPORTS/pytest.xml" || status=1
+
+echo "=== static checks: ruff, mypy ==="
+.venv/bin/python tools/static_checks.py "$REPORTS" || status=1
 
 .venv/bin/python tools/sum_test_reports.py "$REPORTS" || status=1
 exit $status

@@ -1,15 +1,19 @@
 #!/usr/bin/env python3
 """Add up the test reports in a folder and print one line: "N passed, N failed".
 
-Reads PlatformIO's `pio test --json-output-path` files (pio-*.json) and pytest's
---junitxml file (pytest.xml). A suite that errored before running (a build failure)
-counts as one failure, so it can never be mistaken for a pass. Exit code 1 when
-anything failed or nothing ran.
+Reads PlatformIO's `pio test --json-output-path` files (pio-*.json), pytest's
+--junitxml file (pytest.xml) and the static checks' JUnit files (check-*.xml, written by
+tools/static_checks.py: one case per check). A suite that errored before running (a build
+failure) counts as one failure, and so does a missing pytest or check report, so neither can
+be mistaken for a pass. Exit code 1 when anything failed or nothing ran.
 """
 import json
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+#: JUnit reports that must be there: pytest's and one per static check (tools/static_checks.py CHECKS)
+JUNIT_REPORTS = ("pytest", "check-ruff", "check-mypy")
 
 
 def count_pio(path: Path) -> tuple[int, int]:
@@ -49,14 +53,15 @@ def main(argv: list[str]) -> int:
         p, f = count_pio(path)
         print(f"  {path.stem}: {p} passed, {f} failed")
         passed, failed = passed + p, failed + f
-    junit = folder / "pytest.xml"
-    if junit.is_file():
-        p, f = count_junit(junit)
-        print(f"  pytest: {p} passed, {f} failed")
-        passed, failed = passed + p, failed + f
-    else:
-        print("  pytest: no report (did not run)")
-        failed += 1
+    for name in JUNIT_REPORTS:
+        junit = folder / f"{name}.xml"
+        if junit.is_file():
+            p, f = count_junit(junit)
+            print(f"  {name}: {p} passed, {f} failed")
+            passed, failed = passed + p, failed + f
+        else:
+            print(f"  {name}: no report (did not run)")
+            failed += 1
     print(f"{passed} passed, {failed} failed")
     return 0 if failed == 0 and passed > 0 else 1
 

@@ -50,6 +50,7 @@ static bool s_watchdog_boot;
 static bool s_params_corrupt; /* stored parameters were corrupt: defaults in use (health flag) */
 static const sonar_ring_cfg_t *s_ring;
 static bool s_frame_fault; /* a sensor of the frame in s_in.sonar is SONAR_FAULT (set with the frame) */
+static bool s_raw_out;     /* the last tick drove the raw PWM outputs of a host setpoint unchanged */
 
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
 
@@ -88,9 +89,10 @@ static void send_calib_ack(uint8_t id, uint8_t result)
 }
 
 /* AGNAV_CALIB_TABLE (write a table this output stage can drive) and AGNAV_CALIB_REQUEST (read: the
- * table is the answer; save: lib/storage writes the tables, answered IN_PROGRESS; defaults), from
- * link_poll(). */
-static void on_calib(const mavlink_message_t *in)
+ * table is the answer; save: lib/storage writes the tables, answered IN_PROGRESS; defaults; any other
+ * action is refused OUT_OF_RANGE), from link_poll(). Every message gets an answer; true when it was
+ * refused (the link counts it). */
+static bool on_calib(const mavlink_message_t *in)
 {
     calib_table_t t;
     uint8_t id;
@@ -115,18 +117,21 @@ static void on_calib(const mavlink_message_t *in)
             result = AGNAV_CALIB_IN_PROGRESS;
         } else if (action == AGNAV_CALIB_ACTION_DEFAULTS) {
             result = calib_get_default(id, &t) ? link_calib_result(calib_set_table(id, &t)) : AGNAV_CALIB_BAD_TABLE;
+        } else if (action != AGNAV_CALIB_ACTION_READ) {
+            result = AGNAV_CALIB_OUT_OF_RANGE; /* no such action */
         } else if (calib_get_table(id, &t)) {
             mavlink_agnav_calib_table_t m;
             mavlink_message_t msg;
             link_calib_to_msg(id, &t, &m);
             mavlink_msg_agnav_calib_table_encode(link_sysid(), link_compid(), &msg, &m);
             send(&msg);
-            return;
+            return false;
         } else {
             result = AGNAV_CALIB_BAD_TABLE;
         }
     }
     send_calib_ack(id, result);
+    return result != AGNAV_CALIB_ACCEPTED && result != AGNAV_CALIB_IN_PROGRESS;
 }
 
 static uint8_t s_param_changes; /* params_changes() when the modules last took the values */
@@ -258,8 +263,7 @@ static void check_encoders(uint32_t now_ms, const uint16_t *count, const uint16_
 {
     const drive_output_t *d = drive_output();
     /* Not in calibration mode (raw PWM): its sweep drives below the motion threshold on purpose. */
-    bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && link_state()->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
-    bool driving = !raw && s_out.speed_mm_s != 0 &&
+    bool driving = !s_raw_out && s_out.speed_mm_s != 0 &&
                    (drive_params.kind == DRIVE_DIFFERENTIAL ? (d->left_duty | d->right_duty) != 0u : d->throttle_us != 1500u);
     health_encoders(now_ms, driving, count, edges, (uint8_t)(encoder_faults() | s_implausible));
 }
@@ -301,6 +305,12 @@ static void task_control(void)
     behaviour_in_t *in = &s_in; /* the sonar frame is written by task_sonar_frame */
     in->now_ms = now_ms;
     link_behaviour_inputs(in);
+    const link_state_t *ls = link_state();
+    const link_setpoint_t *sp = &ls->setpoint;
+    int8_t raw_dir = sp->speed_mm_s < 0 ? -1 : 1;
+    if (sp->mode == AGNAV_DRIVE_RAW_PWM) { /* the layers and their limits see what the raw outputs drive */
+        drive_raw_physical(sp->steer_pwm, sp->speed_pwm, raw_dir, &in->host_steer_cdeg, &in->host_speed_mm_s);
+    }
     odom_behaviour_inputs(in);
     in->encoder_fault = encoder_faults() != 0u || health_encoder_fault();
     in->sonar_fault = s_ring != 0 && ((uint32_t)(now_ms - s_frame_ms) > SONAR_STALE_MS || s_frame_fault ||
@@ -311,10 +321,14 @@ static void task_control(void)
 
     behaviour_step(in, &s_out);
 
-    const link_state_t *ls = link_state();
-    bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM;
+    /* A raw setpoint within the limits drives its outputs unchanged; one beyond them (or a
+     * clamped one) drives the limited physical command through the tables, which is also what
+     * BEHAVIOUR_STATUS reports: one limiter for every source. */
+    bool raw = s_out.layer == BHV_LAYER_HOST_COMMAND && sp->mode == AGNAV_DRIVE_RAW_PWM &&
+               s_out.speed_mm_s == in->host_speed_mm_s && s_out.steer_cdeg == in->host_steer_cdeg;
+    s_raw_out = raw;
     if (raw) {
-        drive_apply_raw(ls->setpoint.steer_pwm, ls->setpoint.speed_pwm, ls->setpoint.speed_mm_s < 0 ? -1 : 1);
+        drive_apply_raw(sp->steer_pwm, sp->speed_pwm, raw_dir);
     } else if (s_out.speed_mm_s == 0 && s_out.layer == BHV_LAYER_FAILSAFE) {
         drive_stop();
     } else {
@@ -408,9 +422,10 @@ static void send_telemetry_1hz(void)
             healthy &= ~(uint32_t)MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS;
         }
         const link_state_t *ls = link_state();
+        uint32_t dropped = (uint32_t)ls->rx_errors + ls->rx_unknown; /* errors_comm: every frame the parser dropped */
         mavlink_msg_sys_status_pack(link_sysid(), link_compid(), &msg, present, present, healthy, 0u, 0u, -1, -1, 0u,
-                                    ls->rx_errors, ls->rx_refused, ls->rx_unsigned, ls->rx_bad_signature, ls->rx_replay,
-                                    0u, 0u, 0u);
+                                    (uint16_t)(dropped > UINT16_MAX ? UINT16_MAX : dropped), ls->rx_refused,
+                                    ls->rx_unsigned, ls->rx_bad_signature, ls->rx_replay, 0u, 0u, 0u);
     } else {
         /* Phase 2: which sensor failed how (NAMED_VALUE_INT "HEALTH", health.h bit layout).
          * Phase 3: one scheduler task's worst run time per second, round robin ("T_<name>", us).
@@ -559,6 +574,7 @@ void agnav_setup(void)
     memset(&s_out, 0, sizeof s_out);
     memset(&s_sent, 0, sizeof s_sent);
     s_frame_fault = false;
+    s_raw_out = false;
     s_out_ms = s_sent_ms = 0u;
     s_stats_next = 0u;
     s_telem1_phase = 0u;

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from agnav_host.lasers.log import laser_log_info, read_laser_log
 from agnav_host.sil.robot_path import row_distance_of, run_robot_path, timed_errors
@@ -60,4 +59,14 @@ def test_timed_arrival_on_a_urg_over_a_pty(tmp_path):
     e = timed_errors(r, sc)
     assert e["final_error_m"] <= 0.05 and e["heading_error_deg"] <= 2.0 and abs(e["arrival_error_s"]) <= 0.2, e
     assert json.loads((tmp_path / "run" / "run_info.json").read_text())["end_reason"] == "arrived"
+    _robot_side_outputs_are_complete(r, 1)
+
+
+def test_a_whole_field_by_its_pattern_on_a_tim5xx_over_cola_b(tmp_path):
+    sc = load_scenario("field_easy")
+    r = run_robot_path(sc, "row-navigator", tmp_path, ("tim5xx",), duration_s=70.0, run_args=("--pattern", "S-1L-F"))
+    s = r.truth_summary  # scored on the field's own pattern, whose first turn is 1L too
+    assert s["rows_completed"] == 2 and s["plants_touched"] == 0, (r.sil_log[-1500:], r.run_log[-1500:])
+    assert r.run_info is not None and "pattern done" in [e for _, e in r.run_info["controller_events"]]
+    assert abs(r.truth[-1, 4]) < 0.02  # the robot stands once the pattern is done
     _robot_side_outputs_are_complete(r, 1)

@@ -14,6 +14,7 @@ import sys
 from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 from ._paths import CHECKOUT_ROOT, SOURCE_ROOT, keyed_dir, publish_dir
 
@@ -29,8 +30,8 @@ def _generator() -> ModuleType:
         raise RuntimeError(f"protocol/generate.py not found at {path}: the agnav_host installation is incomplete "
                            "(reinstall it, or run from a source checkout)")
     spec = importlib.util.spec_from_file_location("agnav_protocol_generate", path)
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
     spec.loader.exec_module(module)
     return module
 
@@ -58,7 +59,8 @@ def generate_bindings(lang: str) -> dict[str, Path]:
     """Generate the ``lang`` bindings ("c", "python" or "all") where missing or stale; return their paths."""
     out = bindings_dir()
     if CHECKOUT_ROOT is not None or os.environ.get("AGNAV_MAVLINK_BUILD_DIR"):
-        return _generator().generate(lang, out)
+        generated: dict[str, Path] = _generator().generate(lang, out)
+        return generated
     # an installed package: both languages at once into a keyed folder that is complete or absent
     publish_dir(out, lambda tmp: _generator().generate("all", tmp))
     paths = {"c": out / "c" / "agnav" / "mavlink.h", "c_wrapper": out / "c" / "agnav_mavlink.h",
@@ -71,14 +73,14 @@ def dialect() -> ModuleType:
     """Return the generated pymavlink module of the AgNav dialect (common.xml included)."""
     module_path = generate_bindings("python")["python"]
     spec = importlib.util.spec_from_file_location("agnav_mavlink_dialect", module_path)
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules["agnav_mavlink_dialect"] = module
-    assert spec.loader is not None
     spec.loader.exec_module(module)
     return module
 
 
-def new_codec(sysid: int = 255, compid: int = 190):
+def new_codec(sysid: int = 255, compid: int = 190) -> Any:
     """A fresh encoder/decoder (MAVLink 2) with the given source ids (255/190 = ground station)."""
     mav = dialect().MAVLink(None, srcSystem=sysid, srcComponent=compid)
     mav.robust_parsing = True

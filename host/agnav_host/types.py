@@ -95,7 +95,7 @@ class LaserScan:
     @property
     def angles_rad(self) -> FloatArray:
         """Beam angles in the sensor frame, rad, shape (n,)."""
-        return self.angle_min_rad + self.angle_increment_rad * np.arange(len(self.ranges_m))
+        return self.angle_min_rad + self.angle_increment_rad * np.arange(len(self.ranges_m), dtype=np.float64)
 
     @property
     def full_circle(self) -> bool:

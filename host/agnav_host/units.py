@@ -36,7 +36,10 @@ def cdeg_to_rad(v: T) -> T:
 
 def rad_to_cdeg(v: T) -> T:
     """rad -> cdeg, rad/s -> cdeg/s."""
-    return np.degrees(v) * 100.0 if isinstance(v, np.ndarray) else math.degrees(v) * 100.0
+    if isinstance(v, np.ndarray):
+        cdeg: np.ndarray = np.degrees(v) * 100.0
+        return cdeg
+    return math.degrees(v) * 100.0
 
 
 def to_int16(v: float) -> int:

@@ -332,26 +332,26 @@ def test_bench_says_at_once_what_is_under_way(tmp_path, no_run, capsys):
 
 def test_bench_never_starts_more_workers_than_runs(monkeypatch, tmp_path, capsys):
     """``--jobs 100000`` starts two processes for a two-run subset, not that many."""
+    import concurrent.futures as cf
+
     import agnav_host.planning.bench as bench
 
     pools: list[int] = []
 
-    class Pool:  # runs nothing: records how many workers were asked for
-        def __init__(self, n):
+    class Recording(cf.ProcessPoolExecutor):  # records how many workers were asked for
+        def __init__(self, n, **kw):
             pools.append(n)
+            super().__init__(n, **kw)
 
-        def __enter__(self):
-            return self
+    def fake_run(job, *params):  # the forked workers run this stand-in for the (minutes-long) simulation
+        scenario, planner, seed = job
+        return {"scenario": scenario, "planner": planner, "seed": seed, "end": "arrived", "step_median_ms": 0.0,
+                "step_p95_ms": 0.0, "wall_s": 0.0, "traj": np.zeros((2, 4)), "kappa": np.zeros(1)}
 
-        def __exit__(self, *exc):
-            return False
-
-        def imap_unordered(self, fn, items):
-            return ((i, {"job": job}) for i, job in items)
-
-    monkeypatch.setattr(bench.mp, "get_context", lambda *a: type("Ctx", (), {"Pool": Pool}))
+    monkeypatch.setattr(cf, "ProcessPoolExecutor", Recording)
+    monkeypatch.setattr(bench, "run_case", fake_run)
     out = bench.run_suite([bench.BenchCase("canyon", ("flb",), (0, 1), "test")], processes=100_000)
-    assert pools == [2] and [r["job"] for r in out] == [("canyon", "flb", 0), ("canyon", "flb", 1)]
+    assert pools == [2] and [(r["scenario"], r["planner"], r["seed"]) for r in out] == [("canyon", "flb", 0), ("canyon", "flb", 1)]
     monkeypatch.setattr(bench, "run_suite", lambda *a, **k: [])
     main(["bench", "planners", "--out", str(tmp_path / "o"), "--scenarios", "canyon", "--planners", "flb",
           "--seeds", "2", "--jobs", "100000", "--no-plot"])

@@ -556,7 +556,7 @@ def test_emulator_streams_every_published_scan_to_several_clients_in_both_encodi
             s = socket.create_connection(("127.0.0.1", emu.ports[1]), timeout=2.0)
             s.sendall(frame(encode_command(cola, "sEN", "LMDscandata", ("u8", 1)), cola))
             socks.append((cola, s, Deframer()))
-        for cola, s, d in socks:
+        for _cola, s, d in socks:
             while (t := d.next()) is None:
                 d.feed(s.recv(4096))
             assert split_command(*t).kind == "sEA"

@@ -11,10 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from agnav_host.perception import (GroundTracker, ProximityFollower, ProximityFollowerParams, RowNavigator, RowNavigatorParams,
+from agnav_host.perception import (GroundTracker, ProximityFollower, ProximityFollowerParams,
                                    RowParams, TiltedMount, clusters_from_scan, detect_rows, expected_ground_range_m,
                                    mixed_pixel_mask, scan_with_virtual_obstacles)
 from agnav_host.perception._health import LaserWatchdog
+from agnav_host.planning.row_navigator import RowNavigator, RowNavigatorParams
 from agnav_host.scanio import ScanFileError, load_scan_csv, save_scan_csv
 from agnav_host.sim.sensors import Laser2D, laser_preset
 from agnav_host.sim.world import World, plants_along

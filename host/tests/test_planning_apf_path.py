@@ -106,7 +106,7 @@ def test_follow_path_planner_uses_a_given_path():
     p = make_planner("follow-path", RobotSpec())
     obs = obs_with(empty_scan(), (5.0, 5.0))
     obs.extras["path"] = np.array([[0.0, 0.0], [5.0, 0.0], [5.0, 5.0]])
-    for k in range(10):
+    for _ in range(10):
         cmd = p.step(obs)
     assert cmd.speed_m_s > 0.0 and abs(cmd.yaw_rate_rad_s) < 0.2  # along the first leg, not at the goal
 

@@ -83,9 +83,9 @@ def test_infer_product_strength_and_front_blocked_turns_to_goal_side():
     assert inf.speed_fraction == pytest.approx(0.2)
     assert inf.turn_rad < -math.radians(20)  # GOAL with the front blocked: at least NS to the goal's side
     ds = DistanceSets()
-    l, f, r = 1.0, 2.0, 3.0
-    strengths = dict(infer(l, f, r, 0.0, 0.6).fired)
-    exp = ds.memberships(l)[1] * ds.memberships(f)[1] * ds.memberships(r)[1]
+    left, front, right = 1.0, 2.0, 3.0
+    strengths = dict(infer(left, front, right, 0.0, 0.6).fired)
+    exp = ds.memberships(left)[1] * ds.memberships(front)[1] * ds.memberships(right)[1]
     mm = next(i for i, rule in enumerate(RULES) if (rule.left, rule.front, rule.right) == (Dist.MEDIUM,) * 3)
     assert strengths[mm] == pytest.approx(exp)
 

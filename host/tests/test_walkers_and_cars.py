@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from agnav_host.perception import Track
 from agnav_host.planning.base import LocalView, RobotSpec, drive_command
 from agnav_host.planning.timed import BoundaryState, TimedLimits, TrackingParams, TrackState, plan_timed, track
 from agnav_host.sim.runner import _make_controller, run_scenario
@@ -342,9 +343,7 @@ def test_a_car_drives_forward_where_it_cannot_turn_on_the_spot():
     assert drive_command(DIFF_SPEC, 0.0, 1.2, _view((3.0, -3.0)), standing).speed_m_s == 0.0
 
 
-def _track(tid: int, x: float, y: float, vx: float, vy: float) -> "Track":
-    from agnav_host.perception import Track
-
+def _track(tid: int, x: float, y: float, vx: float, vy: float) -> Track:
     return Track(tid, x, y, vx, vy, 0.25, 0.05, tuple(tuple(0.0 for _ in range(4)) for _ in range(4)), 3.0, 30, 2.0)
 
 

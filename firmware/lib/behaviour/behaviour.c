@@ -175,7 +175,21 @@ static struct {
     uint32_t pre_l, pre_r, pre_f;
     uint32_t goal_dist_mm;              /* this tick, when goal seek is on and a goal is set */
     int32_t goal_err_cdeg;              /* goal bearing minus heading, -18000..17999 */
+    bool goal_on;                       /* this tick: goal seek enabled, a goal set and not held */
+
+    /* failsafe hold (behaviour.h) */
+    uint8_t held;                       /* HOLD_* layers waiting for a fresh command */
+    bool new_session;                   /* boot or arm since the host layer was last released */
+    bool was_stop;                      /* the last tick was a stop failsafe */
+    uint8_t held_gen[4];                /* host, manual, goal, mode counts when the last stop began */
+    uint16_t held_seq;                  /* host setpoint sequence number then */
 } b;
+
+#define HOLD_HOST 1u
+#define HOLD_MANUAL 2u
+#define HOLD_GOAL 4u
+#define HOLD_WALL 8u
+#define HOLD_ALL 15u
 
 #define SIDE_LEFT 0u
 #define SIDE_RIGHT 1u
@@ -187,6 +201,8 @@ void behaviour_init(const behaviour_params_t *params, const sonar_ring_cfg_t *ri
         z[k] = 0u;
     }
     b.ring = ring;
+    b.held = HOLD_ALL; /* a boot waits for a first command like the end of a failsafe */
+    b.new_session = true;
     b.n = (ring != 0 && ring->sensor != 0) ? ring->count : 0u;
     if (b.n > SONAR_RING_MAX) {
         b.n = SONAR_RING_MAX;
@@ -243,6 +259,8 @@ void behaviour_arm(void)
 {
     b.estop_latched = false;
     b.wd_latched = false;
+    b.held &= (uint8_t)~HOLD_WALL;
+    b.new_session = true;
 }
 
 void behaviour_wall_extents(uint32_t *l_per_km, uint32_t *r_per_km)
@@ -306,6 +324,45 @@ static uint8_t failsafe_flags(const behaviour_in_t *in)
     return f;
 }
 
+/* The failsafe hold (behaviour.h): a stop holds all command layers, and its first tick notes the
+ * count of each kind of command taken so far; once the stop is over a layer is released by a command
+ * of its kind taken since (the host layer's also newer than the last setpoint before the stop, unless
+ * a new session began: a boot or an arm). */
+static void update_holds(const behaviour_in_t *in, bool stop)
+{
+    bool start = stop && !b.was_stop;
+    b.was_stop = stop;
+    if (start) {
+        b.held_gen[0] = in->host_gen;
+        b.held_gen[1] = in->manual_gen;
+        b.held_gen[2] = in->goal_gen;
+        b.held_gen[3] = in->mode_gen;
+        b.held_seq = in->host_seq;
+    }
+    if (stop) {
+        b.held = HOLD_ALL;
+        return;
+    }
+    uint8_t h = b.held;
+    if ((h & HOLD_HOST) != 0u && in->host_gen != b.held_gen[0] &&
+        (b.new_session || (int16_t)(in->host_seq - b.held_seq) > 0)) {
+        h &= (uint8_t)~(HOLD_HOST | HOLD_WALL);
+    }
+    if ((h & HOLD_MANUAL) != 0u && in->manual_gen != b.held_gen[1]) {
+        h &= (uint8_t)~(HOLD_MANUAL | HOLD_WALL);
+    }
+    if ((h & HOLD_GOAL) != 0u && in->goal_gen != b.held_gen[2]) {
+        h &= (uint8_t)~(HOLD_GOAL | HOLD_WALL);
+    }
+    if (in->mode_gen != b.held_gen[3]) {
+        h &= (uint8_t)~HOLD_WALL;
+    }
+    if ((h & HOLD_HOST) == 0u) {
+        b.new_session = false; /* an arm while the host layer runs starts nothing: a replay stays a replay */
+    }
+    b.held = h;
+}
+
 static uint8_t failsafe_reason(uint8_t f)
 {
     if ((f & BHV_FS_ESTOP) != 0u) {
@@ -321,9 +378,9 @@ static uint8_t failsafe_reason(uint8_t f)
 }
 
 /* ---- layer: move to goal --------------------------------------------------- */
-static bool layer_goal(const behaviour_in_t *in, proposal_t *pr)
+static bool layer_goal(proposal_t *pr)
 {
-    if ((in->mode_flags & BHV_MODE_GOAL_SEEK) == 0u || !in->goal_active) {
+    if (!b.goal_on) {
         return false;
     }
     uint32_t dist = b.goal_dist_mm;
@@ -353,7 +410,7 @@ static bool layer_goal(const behaviour_in_t *in, proposal_t *pr)
 /* ---- layer: host command --------------------------------------------------- */
 static bool layer_host(const behaviour_in_t *in, proposal_t *pr)
 {
-    if (!fresh(in->host_valid, in->host_rx_ms, in->now_ms, b.p.host_timeout_ms)) {
+    if ((b.held & HOLD_HOST) != 0u || !fresh(in->host_valid, in->host_rx_ms, in->now_ms, b.p.host_timeout_ms)) {
         return false;
     }
     pr->steer_cdeg = in->host_steer_cdeg;
@@ -455,7 +512,7 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
     uint8_t n = sonar_n(in);
     b.wall_l = 0u;
     b.wall_r = 0u;
-    if ((in->mode_flags & BHV_MODE_FOLLOW_WALL) == 0u || n == 0u) {
+    if ((in->mode_flags & BHV_MODE_FOLLOW_WALL) == 0u || n == 0u || (b.held & HOLD_WALL) != 0u) {
         return false;
     }
     if (!b.pre_valid || b.pre_seq != in->sonar.seq) {
@@ -475,7 +532,7 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
      * Not while a side sensor on the goal's side is closer than avoid_stop:
      * move-to-goal would turn into what stands there (a post 3 cm off at
      * 60 deg, beside the front-side sensors, was swept in the simulator). */
-    if ((in->mode_flags & BHV_MODE_GOAL_SEEK) != 0u && in->goal_active && side_clear && !blocked) {
+    if (b.goal_on && side_clear && !blocked) {
         int32_t zeta = b.goal_err_cdeg; /* angle robot heading -> goal */
         uint8_t toward = zeta > 0 ? CLS_LEFT : zeta < 0 ? CLS_RIGHT : 0u;
         if (zeta >= -9000L && zeta <= 9000L && (b.pre_near & toward) == 0u) {
@@ -557,7 +614,7 @@ static bool layer_wall(const behaviour_in_t *in, proposal_t *pr)
 /* ---- layer: manual ------------------------------------------------------- */
 static bool layer_manual(const behaviour_in_t *in, proposal_t *pr)
 {
-    if (!fresh(in->manual_valid, in->manual_rx_ms, in->now_ms, b.p.manual_timeout_ms)) {
+    if ((b.held & HOLD_MANUAL) != 0u || !fresh(in->manual_valid, in->manual_rx_ms, in->now_ms, b.p.manual_timeout_ms)) {
         return false;
     }
     pr->steer_cdeg = in->manual_steer_cdeg;
@@ -574,8 +631,8 @@ static bool layer_manual(const behaviour_in_t *in, proposal_t *pr)
 static bool layer_avoid(const behaviour_in_t *in, bool lower_has, const proposal_t *lower, uint16_t dt_ms,
                         proposal_t *pr)
 {
-    if ((in->mode_flags & BHV_MODE_AVOID) == 0u) {
-        b.av_state = AV_CLEAR;
+    if ((in->mode_flags & BHV_MODE_AVOID) == 0u || b.held == HOLD_ALL) {
+        b.av_state = AV_CLEAR; /* off, or nothing commanded since a failsafe: no back-off either */
         return false;
     }
     uint8_t n = sonar_n(in);
@@ -651,7 +708,12 @@ void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out)
     b.have_prev = true;
     b.prev_ms = in->now_ms;
 
-    if ((in->mode_flags & BHV_MODE_GOAL_SEEK) != 0u && in->goal_active) {
+    uint8_t flags = failsafe_flags(in);
+    out->failsafe_flags = flags;
+    update_holds(in, (flags & BHV_FS_STOP_MASK) != 0u);
+
+    b.goal_on = (in->mode_flags & BHV_MODE_GOAL_SEEK) != 0u && in->goal_active && (b.held & HOLD_GOAL) == 0u;
+    if (b.goal_on) {
         /* once per tick, shared by move-to-goal and the follow-wall exit test */
         int32_t dx = in->goal_x_mm - in->x_mm;
         int32_t dy = in->goal_y_mm - in->y_mm;
@@ -659,14 +721,11 @@ void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out)
         b.goal_err_cdeg = behaviour_wrap_cdeg((int32_t)behaviour_atan2_cdeg(dy, dx) - in->heading_cdeg);
     }
 
-    uint8_t flags = failsafe_flags(in);
-    out->failsafe_flags = flags;
-
     /* Lower layers first, lowest priority first: a higher one overwrites. */
     proposal_t best = {0, 0, BHV_REASON_NO_COMMAND};
     proposal_t pr;
     uint8_t layer = BHV_LAYER_IDLE;
-    if (layer_goal(in, &pr)) {
+    if (layer_goal(&pr)) {
         best = pr;
         layer = BHV_LAYER_MOVE_TO_GOAL;
     }

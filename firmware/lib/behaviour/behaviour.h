@@ -11,6 +11,22 @@
  * the best lower proposal drives forward (passive motion safety only acts on
  * forward motion). Pure logic: no HAL calls, time comes from the input.
  *
+ * One limiter after every source: MAX_SPEED_MM_S / MAX_STEER_CDEG clamp the winning
+ * proposal, whichever layer made it (host physical or raw PWM setpoints, whose outputs
+ * main maps back through the calibration tables; manual override; the firmware's own
+ * goal, wall and avoid layers).
+ *
+ * Failsafe hold: after any stop failsafe (e-stop, link loss, sensor fault, watchdog
+ * boot; a boot starts held too) the robot moves again only on a fresh command. Every
+ * command layer is held until the stop is over and a command of its own kind has been
+ * taken since the stop began: the host layer a new setpoint (with a sequence number newer
+ * than the last one before the stop, so a replayed setpoint is not one, unless an
+ * arm came since: a new host session starts its numbers again), the manual layer a new
+ * override, move-to-goal a new goal (a goal stored before the failsafe is never used
+ * again); follow-wall (which needs no command) any of these, a SET_BEHAVIOURS, or an
+ * arm. Heartbeats keep the link alive but release nothing. While nothing is released
+ * the avoid layer does not start its back-off either: the robot stays where it stopped.
+ *
  * Conventions: REP-103 body frame, x forward, y left; angles CCW positive, so
  * a positive steer_cdeg turns left; speed_mm_s negative = reverse.
  * Units: _mm, _mm_s, _cdeg (1/100 deg), _ms.
@@ -125,6 +141,8 @@ typedef struct behaviour_in_s {
     int16_t host_speed_mm_s;
     uint32_t host_rx_ms;            /* when that setpoint arrived */
     bool host_valid;
+    uint16_t host_seq;              /* its sequence number (the host counts up, wrapping) */
+    uint8_t host_gen;               /* setpoints taken so far (wraps): a change is a new setpoint */
     uint32_t heartbeat_rx_ms;       /* newest host heartbeat */
     bool heartbeat_valid;
     /* manual override (RC_CHANNELS_OVERRIDE / MANUAL_CONTROL, decoded by link) */
@@ -132,6 +150,7 @@ typedef struct behaviour_in_s {
     int16_t manual_speed_mm_s;
     uint32_t manual_rx_ms;
     bool manual_valid;
+    uint8_t manual_gen;             /* manual messages taken (wraps) */
     /* safety inputs */
     bool estop;                     /* e-stop input active */
     bool encoder_fault;
@@ -147,7 +166,9 @@ typedef struct behaviour_in_s {
     int32_t goal_x_mm;
     int32_t goal_y_mm;
     bool goal_active;
+    uint8_t goal_gen;               /* goals taken (wraps) */
     uint8_t mode_flags;             /* BHV_MODE_* */
+    uint8_t mode_gen;               /* SET_BEHAVIOURS commands taken (wraps) */
 } behaviour_in_t;
 
 typedef struct {
@@ -178,7 +199,9 @@ void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out);
 void behaviour_sonar_frame(const sonar_frame_t *frame);
 
 /* Host "arm"/clear: drops the e-stop latch (re-latches next tick if the
- * e-stop input is still active) and the watchdog-boot latch. */
+ * e-stop input is still active) and the watchdog-boot latch, releases the
+ * follow-wall hold and starts a new host session (the next new setpoint counts
+ * whatever its sequence number). It does not release a stored goal or setpoint. */
 void behaviour_arm(void);
 
 /* Last follow-wall obstacle extents l and r in 1/km (0 when no sonar). */

@@ -59,21 +59,28 @@ static bool pos_above(const calib_table_t *t)
     return t->pos.n > 0u && t->pos.pt[t->pos.n - 1u].pwm > t->neutral_pwm;
 }
 
-static int32_t side_value(const calib_side_t *s, uint16_t neutral, uint16_t d)
+/* One side's piecewise-linear map, either way: to_value looks up by the distance of the pwm from
+ * neutral and gives the value; otherwise by |value| and gives the pwm. Below the first point: the
+ * dead band (value 0), or slower than the actuator can go (neutral: stop rather than go faster than
+ * asked); beyond the last point: saturation. One function for both directions keeps the AVR build
+ * small. Validated tables keep every key and output within 16 bits (pwm <= 3000, |value| <= 10000,
+ * one sign per side); the product of a step stays below 2^31. */
+__attribute__((noinline)) static int32_t side_lookup(const calib_side_t *s, uint16_t neutral, bool to_value, uint16_t x)
 {
-    if (s->n == 0u || d < dist_u16(s->pt[0].pwm, neutral)) {
-        return 0; /* dead band (or no such side) */
-    }
-    for (uint8_t i = 0; i + 1u < s->n; i++) {
-        uint16_t d0 = dist_u16(s->pt[i].pwm, neutral);
-        uint16_t d1 = dist_u16(s->pt[i + 1u].pwm, neutral);
-        if (d < d1) {
-            int32_t v0 = s->pt[i].value;
-            int32_t dv = (int32_t)s->pt[i + 1u].value - v0;
-            return v0 + units_div_round_i32(dv * (int32_t)(d - d0), (int32_t)(d1 - d0));
+    int32_t prev_o = to_value ? 0 : (int32_t)neutral;
+    uint16_t prev_k = 0u;
+    for (uint8_t i = 0; i < s->n; i++) {
+        const calib_point_t *p = &s->pt[i];
+        uint16_t k = to_value ? dist_u16(p->pwm, neutral) : (uint16_t)units_abs_u32(p->value);
+        int32_t o = to_value ? (int32_t)p->value : (int32_t)p->pwm;
+        if (x < k) {
+            return i == 0u ? prev_o
+                           : prev_o + units_div_round_i32((o - prev_o) * (int32_t)(x - prev_k), (int32_t)(k - prev_k));
         }
+        prev_k = k;
+        prev_o = o;
     }
-    return s->pt[s->n - 1u].value; /* saturation */
+    return prev_o;
 }
 
 int32_t calib_table_value(const calib_table_t *t, uint16_t pwm)
@@ -82,8 +89,7 @@ int32_t calib_table_value(const calib_table_t *t, uint16_t pwm)
         return 0;
     }
     bool above = pwm > t->neutral_pwm;
-    uint16_t d = dist_u16(pwm, t->neutral_pwm);
-    return side_value(above == pos_above(t) ? &t->pos : &t->neg, t->neutral_pwm, d);
+    return side_lookup(above == pos_above(t) ? &t->pos : &t->neg, t->neutral_pwm, true, dist_u16(pwm, t->neutral_pwm));
 }
 
 uint16_t calib_table_pwm(const calib_table_t *t, int32_t value)
@@ -95,27 +101,11 @@ uint16_t calib_table_pwm(const calib_table_t *t, int32_t value)
         return t->neutral_pwm;
     }
     const calib_side_t *s = value > 0 ? &t->pos : &t->neg;
-    uint32_t mag = units_abs_u32(value); /* defined for INT32_MIN too */
     if (s->n == 0u) {
         s = &t->pos; /* sign-magnitude: the output stage sets the direction */
-        if (s->n == 0u) {
-            return t->neutral_pwm;
-        }
     }
-    if (mag < units_abs_u32(s->pt[0].value)) {
-        return t->neutral_pwm; /* slower than the actuator can go: stop */
-    }
-    for (uint8_t i = 0; i + 1u < s->n; i++) {
-        int32_t m0 = (int32_t)units_abs_u32(s->pt[i].value);
-        int32_t m1 = (int32_t)units_abs_u32(s->pt[i + 1u].value);
-        if (mag < (uint32_t)m1) {
-            /* m0 <= mag < m1 <= 2^15 and |dp| < 2^16: the product stays below 2^31 */
-            int32_t p0 = s->pt[i].pwm;
-            int32_t dp = (int32_t)s->pt[i + 1u].pwm - p0;
-            return (uint16_t)(p0 + units_div_round_i32(dp * ((int32_t)mag - m0), m1 - m0));
-        }
-    }
-    return s->pt[s->n - 1u].pwm; /* saturation */
+    uint32_t mag = units_abs_u32(value); /* defined for INT32_MIN too */
+    return (uint16_t)side_lookup(s, t->neutral_pwm, false, (uint16_t)(mag > 65535u ? 65535u : mag));
 }
 
 int32_t calib_value_from_pwm(uint8_t id, uint16_t pwm)

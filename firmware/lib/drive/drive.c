@@ -101,6 +101,31 @@ void drive_apply_raw(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir)
     }
 }
 
+static uint8_t byte_of(uint16_t pwm) { return (uint8_t)(pwm > 255u ? 255u : pwm); }
+
+void drive_raw_physical(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir, int16_t *steer_cdeg, int16_t *speed_mm_s)
+{
+    uint8_t v_b = byte_of(speed_pwm);
+    int32_t v;
+    int32_t steer = 0;
+    if (s_cfg.kind == DRIVE_ACKERMANN) {
+        steer = calib_value_from_pwm(CALIB_STEER, byte_of(steer_pwm));
+        v = calib_value_from_pwm(CALIB_SPEED, v_b);
+    } else {
+        int32_t r = calib_value_from_pwm(CALIB_SPEED_RIGHT, v_b);
+        v = calib_value_from_pwm(CALIB_SPEED_LEFT, v_b);
+        v = r > v ? r : v;
+    }
+    if (v < 0) {
+        v = -v; /* the magnitude: the direction comes from dir, as in drive_apply_raw */
+    }
+    if (v == 0 && v_b != 0u) {
+        v = 1; /* dead band */
+    }
+    *steer_cdeg = (int16_t)steer;
+    *speed_mm_s = (int16_t)(dir < 0 ? -v : v);
+}
+
 void drive_stop(void)
 {
     s_out.direction = 0;

@@ -55,6 +55,12 @@ void drive_init(const drive_cfg_t *cfg);
 void drive_apply(int16_t steer_cdeg, int16_t speed_mm_s);
 /* Calibration mode: table units straight to the outputs (speed byte signed by dir). */
 void drive_apply_raw(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir);
+/* What drive_apply_raw(steer_pwm, speed_pwm, dir) drives, as a physical command through the active
+ * tables (forward lookup), so that the speed and steering limits apply to raw outputs too: Ackermann
+ * the steering and speed tables; differential no turn (both sides get the one duty) and the faster
+ * side's speed. A speed byte inside the dead band reads as 1 mm/s in its direction (still motion
+ * for the avoid layer, which must see a start towards an obstacle before the wheels do); 0 is 0. */
+void drive_raw_physical(uint16_t steer_pwm, uint16_t speed_pwm, int8_t dir, int16_t *steer_cdeg, int16_t *speed_mm_s);
 /* Neutral outputs: centred steering, zero throttle / duty. */
 void drive_stop(void);
 const drive_output_t *drive_output(void);

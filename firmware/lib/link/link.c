@@ -222,7 +222,8 @@ int16_t link_rc_to_range(uint16_t pulse_us, int16_t full)
 }
 
 /* Addressed to this robot: system ours (or 0 when broadcast is allowed), component ours or 0.
- * Anything else is another system's business: ignored and counted. */
+ * Another system's message is its business: ignored and counted in rx_other_target. One for a
+ * component this system does not have is refused (counted, no answer: nobody here speaks for it). */
 static bool addressed(uint8_t target_system, uint8_t target_component, bool broadcast_ok)
 {
     bool sys = target_system == s_cfg.sysid || (target_system == 0u && broadcast_ok);
@@ -231,7 +232,7 @@ static bool addressed(uint8_t target_system, uint8_t target_component, bool broa
         if (target_system == 0u && comp) {
             return false; /* broadcast where not allowed: the caller refuses it */
         }
-        count(&s_state.rx_other_target);
+        count(target_system == s_cfg.sysid ? &s_state.rx_refused : &s_state.rx_other_target);
         return false;
     }
     return true;
@@ -301,6 +302,7 @@ static uint8_t cmd_set_behaviours(const mavlink_command_long_t *c, const float *
         s_state.behaviour_enable = (uint8_t)((is_one(c->param1) ? LINK_ENABLE_FOLLOW_WALL : 0u) |
                                              (is_one(c->param2) ? LINK_ENABLE_GOAL_SEEK : 0u) |
                                              (is_one(c->param3) ? LINK_ENABLE_AVOID : 0u));
+        s_state.behaviour_gen++;
     }
     return reason;
 }
@@ -425,22 +427,24 @@ void link_behaviour_inputs(behaviour_in_t *in)
     const link_state_t *ls = &s_state;
     in->host_steer_cdeg = ls->setpoint.steer_cdeg;
     in->host_speed_mm_s = ls->setpoint.speed_mm_s;
-    if (ls->setpoint.mode == AGNAV_DRIVE_RAW_PWM && ls->setpoint.speed_pwm != 0u && ls->setpoint.speed_mm_s == 0) {
-        in->host_speed_mm_s = 1; /* raw forward (calibration): the avoid layer must see it before the wheels do */
-    }
     in->host_rx_ms = ls->setpoint.rx_ms;
     in->host_valid = ls->setpoint.valid;
+    in->host_seq = ls->setpoint.seq;
+    in->host_gen = ls->setpoint.gen;
     in->heartbeat_rx_ms = ls->host_heartbeat_ms;
     in->heartbeat_valid = ls->host_seen;
     in->manual_steer_cdeg = ls->manual.steer_cdeg;
     in->manual_speed_mm_s = ls->manual.speed_mm_s;
     in->manual_rx_ms = ls->manual.rx_ms;
     in->manual_valid = ls->manual.valid;
+    in->manual_gen = ls->manual.gen;
     in->estop = ls->estop;
     in->goal_x_mm = ls->goal.x_mm;
     in->goal_y_mm = ls->goal.y_mm;
     in->goal_active = ls->goal.active;
+    in->goal_gen = ls->goal.gen;
     in->mode_flags = ls->behaviour_enable;
+    in->mode_gen = ls->behaviour_gen;
 }
 
 void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s)
@@ -473,10 +477,11 @@ static void handle_drive_setpoint(const mavlink_message_t *m, uint32_t now_ms)
     if (!for_robot(sp.target_system, sp.target_component, now_ms)) {
         return;
     }
+    /* The PWM fields are checked in both modes (0 in physical mode): a field out of range is garbage. */
     bool ok = sp.mode <= AGNAV_DRIVE_RAW_PWM && sp.steer_cdeg >= -SETPOINT_STEER_LIMIT_CDEG &&
               sp.steer_cdeg <= SETPOINT_STEER_LIMIT_CDEG && sp.speed_mm_s >= -SETPOINT_SPEED_LIMIT_MM_S &&
-              sp.speed_mm_s <= SETPOINT_SPEED_LIMIT_MM_S &&
-              (sp.mode != AGNAV_DRIVE_RAW_PWM || (sp.steer_pwm <= RAW_PWM_LIMIT && sp.speed_pwm <= RAW_PWM_LIMIT));
+              sp.speed_mm_s <= SETPOINT_SPEED_LIMIT_MM_S && sp.steer_pwm <= RAW_PWM_LIMIT &&
+              sp.speed_pwm <= RAW_PWM_LIMIT;
     if (!ok) {
         s_state.setpoint.valid = false;
         refuse(LINK_TEXT("refused SETPOINT: out of range, stop"), now_ms);
@@ -490,6 +495,7 @@ static void handle_drive_setpoint(const mavlink_message_t *m, uint32_t now_ms)
     s_state.setpoint.seq = sp.seq;
     s_state.setpoint.rx_ms = now_ms;
     s_state.setpoint.valid = true;
+    s_state.setpoint.gen++;
     host_heard(now_ms);
 }
 
@@ -517,6 +523,7 @@ static void handle_rc_override(const mavlink_message_t *m, uint32_t now_ms)
     s_state.manual.speed_mm_s = link_rc_to_range(rc.chan3_raw, s_cfg.manual_max_speed_mm_s);
     s_state.manual.rx_ms = now_ms;
     s_state.manual.valid = !(rc_released(rc.chan1_raw) && rc_released(rc.chan3_raw));
+    s_state.manual.gen++;
     host_heard(now_ms);
 }
 
@@ -540,6 +547,7 @@ static void handle_manual_control(const mavlink_message_t *m, uint32_t now_ms)
     s_state.manual.steer_cdeg = (int16_t)(-((int32_t)r * s_cfg.manual_max_steer_cdeg) / 1000);
     s_state.manual.rx_ms = now_ms;
     s_state.manual.valid = true;
+    s_state.manual.gen++;
     host_heard(now_ms);
 }
 
@@ -561,6 +569,7 @@ static void handle_position_target(const mavlink_message_t *m, uint32_t now_ms)
     s_state.goal.x_mm = times_1000(t.x);  /* (int32_t)(t.x * 1000.0f) */
     s_state.goal.y_mm = -times_1000(t.y); /* (int32_t)(-t.y * 1000.0f) */
     s_state.goal.active = true;
+    s_state.goal.gen++;
 }
 
 static void handle_param_request_list(const mavlink_message_t *m)
@@ -586,20 +595,17 @@ static void handle_param_request_read(const mavlink_message_t *m, uint32_t now_m
     }
 }
 
-/* AGNAV_CALIB_TABLE and AGNAV_CALIB_REQUEST: main's on_calib (the link keeps no copy). */
-static void handle_calib_table(const mavlink_message_t *m)
+/* AGNAV_CALIB_TABLE and AGNAV_CALIB_REQUEST: main's on_calib (the link keeps no copy), which answers
+ * each with an AGNAV_CALIB_ACK or the table; a broadcast is refused like any configuration message. */
+static void handle_calib(const mavlink_message_t *m, uint32_t now_ms)
 {
-    if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_table_get_target_system(m),
-                                         mavlink_msg_agnav_calib_table_get_target_component(m), false)) {
-        s_cfg.on_calib(m);
-    }
-}
-
-static void handle_calib_request(const mavlink_message_t *m)
-{
-    if (s_cfg.on_calib != 0 && addressed(mavlink_msg_agnav_calib_request_get_target_system(m),
-                                         mavlink_msg_agnav_calib_request_get_target_component(m), false)) {
-        s_cfg.on_calib(m);
+    bool table = m->msgid == MAVLINK_MSG_ID_AGNAV_CALIB_TABLE;
+    uint8_t ts = table ? mavlink_msg_agnav_calib_table_get_target_system(m)
+                       : mavlink_msg_agnav_calib_request_get_target_system(m);
+    uint8_t tc = table ? mavlink_msg_agnav_calib_table_get_target_component(m)
+                       : mavlink_msg_agnav_calib_request_get_target_component(m);
+    if (s_cfg.on_calib != 0 && for_robot(ts, tc, now_ms) && s_cfg.on_calib(m)) {
+        count(&s_state.rx_refused);
     }
 }
 
@@ -640,10 +646,8 @@ __attribute__((noinline)) static void handle(const mavlink_message_t *m, uint32_
         handle_param_set(m, now_ms);
         break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_TABLE:
-        handle_calib_table(m);
-        break;
     case MAVLINK_MSG_ID_AGNAV_CALIB_REQUEST:
-        handle_calib_request(m);
+        handle_calib(m, now_ms);
         break;
     default:
         break;
@@ -674,9 +678,9 @@ void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms)
             }
         } else if (r == MAVLINK_FRAMING_BAD_CRC) {
             if (mavlink_get_msg_entry(s_rx_msg.msgid) == NULL) {
-                s_state.rx_unknown++; /* a message this firmware does not parse */
+                count(&s_state.rx_unknown); /* an id the dialect does not have */
             } else {
-                s_state.rx_errors++;
+                count(&s_state.rx_errors);
             }
         }
     }

@@ -12,11 +12,13 @@
  *
  * Input checks (docs/safety.md "Bad commands"): every message is checked for its target
  * (ours, or 0 = broadcast only for MAV_CMD_AGNAV_ESTOP, PARAM_REQUEST_* and HEARTBEAT; other
- * systems' messages are ignored and counted in rx_other_target), for NaN/inf in the floats it
- * uses and for ranges. A refused COMMAND_LONG is answered with COMMAND_ACK MAV_RESULT_DENIED
- * (unknown ids: MAV_RESULT_UNSUPPORTED) and the LINK_REFUSAL_* reason in result_param2; other
- * messages get a STATUSTEXT reason (at most one per second). A refused motion message also
- * drops the current one of its kind (the robot stops rather than keep an older command).
+ * systems' messages are ignored and counted in rx_other_target; a component of this system other
+ * than ours is refused), for NaN/inf in the floats it uses and for ranges. A refused COMMAND_LONG
+ * is answered with COMMAND_ACK MAV_RESULT_DENIED (unknown ids: MAV_RESULT_UNSUPPORTED) and the
+ * LINK_REFUSAL_* reason in result_param2; a refused calibration message with AGNAV_CALIB_ACK;
+ * other messages get a STATUSTEXT reason (at most one per second). Every refusal is counted in
+ * rx_refused. A refused motion message also drops the current one of its kind (the robot stops
+ * rather than keep an older command).
  * Clamps (not refusals): steering and speed within the representable range are limited by
  * MAX_STEER_CDEG / MAX_SPEED_MM_S in the behaviour layer; RC pulses 800..1000 and 2000..2200 us
  * count as full deflection.
@@ -45,6 +47,7 @@ typedef struct {
     uint16_t seq;
     uint32_t rx_ms;      /* when it arrived */
     bool valid;
+    uint8_t gen;         /* setpoints taken (wraps): a change is a new one (behaviour's failsafe hold) */
 } link_setpoint_t;
 
 typedef struct {
@@ -52,12 +55,14 @@ typedef struct {
     int16_t speed_mm_s;
     uint32_t rx_ms;
     bool valid;
+    uint8_t gen;  /* RC_CHANNELS_OVERRIDE / MANUAL_CONTROL messages taken (wraps) */
 } link_manual_t;
 
 typedef struct {
     int32_t x_mm; /* odometry frame, REP-103 */
     int32_t y_mm;
     bool active;
+    uint8_t gen;  /* goals taken (wraps) */
 } link_goal_t;
 
 #define LINK_ENABLE_FOLLOW_WALL 0x01u
@@ -73,14 +78,16 @@ typedef struct {
     bool estop;                 /* as last commanded (MAV_CMD_AGNAV_ESTOP) */
     bool arm_request;           /* one-shot: MAV_CMD_COMPONENT_ARM_DISARM(1) arrived */
     uint8_t behaviour_enable;   /* LINK_ENABLE_* */
+    uint8_t behaviour_gen;      /* MAV_CMD_AGNAV_SET_BEHAVIOURS commands taken (wraps) */
     uint16_t rx_frames;
     uint16_t rx_errors;  /* frames of known messages with a bad CRC */
-    uint16_t rx_unknown; /* frames of messages the firmware does not parse (skipped) */
+    uint16_t rx_unknown; /* frames of an id the dialect does not have (their CRC cannot be checked): dropped */
     uint16_t tx_drops;   /* frames dropped because the UART queue was full */
     /* Refusals (all saturate at 65535; sent in SYS_STATUS errors_count1..4, see docs/safety.md). */
     uint16_t rx_refused;       /* messages / commands for us refused: NaN/inf, out of range, broadcast
-                                * motion, unsupported command, unauthorised key change */
-    uint16_t rx_other_target;  /* addressed to another system or component: ignored */
+                                * motion, unsupported command or action, unauthorised key change, refused
+                                * calibration writes, a component of this system other than ours */
+    uint16_t rx_other_target;  /* addressed to another system: ignored */
     uint16_t rx_unsigned;      /* signing on: frames without a signature dropped */
     uint16_t rx_bad_signature; /* signing on: frames signed with another key dropped */
     uint16_t rx_replay;        /* signing on: frames with an old timestamp (replays) dropped */
@@ -101,8 +108,9 @@ typedef struct {
     int16_t manual_max_steer_cdeg; /* full stick deflection */
     int16_t manual_max_speed_mm_s;
     /* Called from link_poll() with each AGNAV_CALIB_TABLE / AGNAV_CALIB_REQUEST addressed
-     * to this robot (decoded there, so the link keeps no copy: RAM is scarce). May be NULL. */
-    void (*on_calib)(const mavlink_message_t *msg);
+     * to this robot (decoded there, so the link keeps no copy: RAM is scarce); returns true when it
+     * refused the message (the link counts it). May be NULL. */
+    bool (*on_calib)(const mavlink_message_t *msg);
     /* Key provisioning window (ms after link_init) during which an UNSIGNED SETUP_SIGNING is
      * accepted: main opens it only after a power-on or external reset (the USB auto-reset of
      * the Mega, or the reset button), i.e. with someone at the robot. 0 = closed. */
@@ -122,8 +130,9 @@ extern const PARAMS_ROM param_group_t LINK_PARAM_GROUP; /* the rows, for main's 
 void link_init(const link_cfg_t *cfg);
 
 /* What the host asked for into the behaviour inputs (host setpoint, heartbeat, manual override,
- * e-stop, goal, enabled layers), every control tick. A raw PWM setpoint driving forward with
- * speed_mm_s 0 reads as 1 mm/s: the avoid layer sees the motion before the wheels do. */
+ * e-stop, goal, enabled layers, the counts of each kind of command taken), every control tick. A raw
+ * PWM setpoint's steer_cdeg / speed_mm_s go in as sent: main replaces them with what the raw outputs
+ * amount to (drive_raw_physical), so that the layers and their limits see the real command. */
 struct behaviour_in_s;
 void link_behaviour_inputs(struct behaviour_in_s *in);
 

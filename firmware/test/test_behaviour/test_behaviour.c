@@ -1,5 +1,6 @@
-/* Unity tests for lib/behaviour: arbitration order, failsafes, passive motion
- * safety timing, follow-wall canyon timers, goal seek, integer trig.
+/* Unity tests for lib/behaviour: arbitration order, failsafes and the hold after
+ * them, passive motion safety timing, follow-wall canyon timers,
+ * goal seek, integer trig.
  * behaviour is pure logic (no HAL calls): time is the input's now_ms. */
 #include "unity.h"
 
@@ -34,12 +35,39 @@ static void link_fresh(void)
     in.heartbeat_rx_ms = in.now_ms;
 }
 
+/* A new host setpoint (what link_behaviour_inputs gives for one: its count and sequence number move on). */
 static void host_cmd(int16_t steer, int16_t speed)
 {
     in.host_valid = true;
     in.host_rx_ms = in.now_ms;
     in.host_steer_cdeg = steer;
     in.host_speed_mm_s = speed;
+    in.host_gen++;
+    in.host_seq++;
+}
+
+static void manual_cmd(int16_t steer, int16_t speed)
+{
+    in.manual_valid = true;
+    in.manual_rx_ms = in.now_ms;
+    in.manual_steer_cdeg = steer;
+    in.manual_speed_mm_s = speed;
+    in.manual_gen++;
+}
+
+static void goal_cmd(int32_t x_mm, int32_t y_mm)
+{
+    in.goal_active = true;
+    in.goal_x_mm = x_mm;
+    in.goal_y_mm = y_mm;
+    in.goal_gen++;
+}
+
+/* MAV_CMD_AGNAV_SET_BEHAVIOURS */
+static void modes(uint8_t flags)
+{
+    in.mode_flags = flags;
+    in.mode_gen++;
 }
 
 static void tick(void) { behaviour_step(&in, &out); }
@@ -77,15 +105,10 @@ void test_behaviour_step_highest_layer_wins_when_several_layers_command(void)
     set_range(0, 200u);                       /* obstacle dead ahead */
     set_range(1, 500u);                       /* wall front-left */
     set_range(2, 500u);
-    in.manual_valid = true;
-    in.manual_rx_ms = in.now_ms;
-    in.manual_steer_cdeg = 1111;
-    in.manual_speed_mm_s = 222;
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
+    manual_cmd(1111, 222);
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID);
     host_cmd(-500, 333);
-    in.goal_active = true;
-    in.goal_x_mm = 5000;
-    in.goal_y_mm = 0;
+    goal_cmd(5000, 0);
 
     tick();
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_FAILSAFE, out.layer, "estop beats all");
@@ -146,9 +169,7 @@ void test_behaviour_host_command_is_limited_to_max_speed_and_steer(void)
 void test_behaviour_manual_override_expires_after_manual_timeout(void)
 {
     host_cmd(0, 300);
-    in.manual_valid = true;
-    in.manual_rx_ms = in.now_ms;
-    in.manual_speed_mm_s = -150;
+    manual_cmd(0, -150);
     uint32_t t0 = in.now_ms;
     for (uint8_t k = 0; k < 30u; k++) {
         link_fresh();
@@ -301,7 +322,184 @@ void test_behaviour_sensor_fault_stops_but_calib_defaulted_only_flags(void)
     TEST_ASSERT_BITS_HIGH(BHV_FS_SONAR_FAULT, out.failsafe_flags);
     in.sonar_fault = false;
     tick();
-    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "fault cleared resumes");
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "the setpoint from before the fault resumed");
+    host_cmd(0, 400);
+    tick();
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "fault cleared: the next setpoint drives");
+}
+
+/* ---- the hold after a failsafe: motion again only on a fresh command ------ */
+
+static void ticks(uint16_t n, bool heartbeats)
+{
+    for (uint16_t k = 0; k < n; k++) {
+        if (heartbeats) {
+            link_fresh();
+        }
+        tick();
+        in.now_ms += TICK_MS;
+    }
+}
+
+/* A goal being sought, the host gone (link loss), then a ground station's heartbeats: nothing moves
+ * until a new goal arrives. */
+void test_behaviour_heartbeats_after_link_loss_do_not_resume_a_stored_goal(void)
+{
+    modes(BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID);
+    goal_cmd(8000, 0);
+    ticks(10u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
+    ticks(40u, false); /* 800 ms of silence */
+    TEST_ASSERT_EQUAL_UINT8(BHV_REASON_LINK_LOSS, out.reason);
+    for (uint16_t k = 0; k < 150u; k++) { /* 3 s of heartbeats */
+        link_fresh();
+        tick();
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "a heartbeat restarted the stored goal");
+        TEST_ASSERT_EQUAL_INT16(0, out.speed_mm_s);
+        in.now_ms += TICK_MS;
+    }
+    goal_cmd(8000, 0); /* the host sends its goal again */
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
+    TEST_ASSERT_TRUE(out.speed_mm_s > 0);
+}
+
+/* The setpoint from before each kind of failsafe is still younger than HOST_TIMEOUT_MS when the
+ * failsafe ends: it is not obeyed; the next setpoint is. */
+void test_behaviour_setpoint_from_before_any_failsafe_is_not_obeyed_after_it(void)
+{
+    behaviour_params_t p = behaviour_params;
+    p.host_timeout_ms = 5000u;
+    behaviour_set_params(&p);
+    for (uint8_t kind = 0; kind < 4u; kind++) {
+        host_cmd(0, 400);
+        ticks(2u, true);
+        TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
+        if (kind == 0u) {
+            ticks(30u, false); /* link loss */
+        } else if (kind == 1u) {
+            in.estop = true; /* e-stop, released and armed */
+            ticks(5u, true);
+            in.estop = false;
+            behaviour_arm();
+        } else if (kind == 2u) {
+            in.sonar_fault = true; /* a sensor fault that clears */
+            ticks(5u, true);
+            in.sonar_fault = false;
+        } else {
+            in.reset_was_watchdog = true; /* a watchdog boot, then the host's arm */
+            ticks(5u, true);
+            behaviour_arm();
+        }
+        ticks(50u, true);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "a stale setpoint drives after the failsafe");
+        TEST_ASSERT_EQUAL_INT16(0, out.speed_mm_s);
+        host_cmd(0, 300);
+        ticks(1u, true);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "a new setpoint after the failsafe");
+        TEST_ASSERT_EQUAL_INT16(300, out.speed_mm_s);
+    }
+}
+
+/* A setpoint taken after the failsafe whose sequence number is not newer than the last one before
+ * it is a replay: held. An arm starts a new host session, whose numbers start again. */
+void test_behaviour_replayed_setpoint_is_held_until_a_newer_one_or_an_arm(void)
+{
+    host_cmd(0, 400);
+    in.host_seq = 500u;
+    ticks(2u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
+    ticks(30u, false); /* link loss */
+    for (uint16_t seq = 480u; seq <= 500u; seq++) { /* the captured frames again */
+        host_cmd(0, 400);
+        in.host_seq = seq;
+        ticks(1u, true);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "a replayed setpoint drives");
+    }
+    host_cmd(0, 250);
+    in.host_seq = 501u;
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_HOST_COMMAND, out.layer);
+    TEST_ASSERT_EQUAL_INT16(250, out.speed_mm_s);
+
+    ticks(30u, false); /* link loss; the host restarts: arm, then its setpoints from 1 */
+    behaviour_arm();
+    host_cmd(0, 200);
+    in.host_seq = 1u;
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_HOST_COMMAND, out.layer, "a new session after an arm");
+    TEST_ASSERT_EQUAL_INT16(200, out.speed_mm_s);
+
+    behaviour_arm(); /* an arm while driving does not make a later replay new */
+    host_cmd(0, 200);
+    in.host_seq = 2u;
+    ticks(2u, true);
+    ticks(30u, false);
+    host_cmd(0, 200);
+    in.host_seq = 2u;
+    ticks(5u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_IDLE, out.layer);
+}
+
+/* Manual override from before a failsafe is held as well; a new one is obeyed. */
+void test_behaviour_manual_override_from_before_a_failsafe_is_held(void)
+{
+    behaviour_params_t p = behaviour_params;
+    p.manual_timeout_ms = 5000u;
+    behaviour_set_params(&p);
+    manual_cmd(0, 300);
+    ticks(2u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MANUAL, out.layer);
+    in.estop = true;
+    ticks(3u, true);
+    in.estop = false;
+    behaviour_arm();
+    ticks(10u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_IDLE, out.layer);
+    manual_cmd(0, 300);
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MANUAL, out.layer);
+}
+
+/* Follow-wall needs no command while it runs, so after a failsafe it waits for one: an arm, a
+ * SET_BEHAVIOURS or any new command. Heartbeats alone do not release it. */
+void test_behaviour_follow_wall_waits_for_a_command_after_a_failsafe(void)
+{
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID);
+    set_range(10, 400u); /* wall front-right */
+    set_range(11, 600u);
+    ticks(2u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FOLLOW_WALL, out.layer);
+    ticks(30u, false);
+    ticks(100u, true);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_IDLE, out.layer, "heartbeats restarted follow-wall");
+    behaviour_arm();
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FOLLOW_WALL, out.layer);
+    ticks(30u, false);
+    ticks(5u, true);
+    TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_IDLE, out.layer);
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID);
+    ticks(1u, true);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(BHV_LAYER_FOLLOW_WALL, out.layer, "SET_BEHAVIOURS releases it");
+}
+
+/* Still rolling towards an obstacle when the link comes back with heartbeats only: the avoid layer
+ * does not start its back-off (motion nobody commanded). */
+void test_behaviour_no_back_off_without_a_command_after_a_failsafe(void)
+{
+    host_cmd(0, 400);
+    ticks(2u, true);
+    ticks(30u, false);
+    in.speed_mm_s = 200; /* coasting */
+    set_range(0, 200u);
+    for (uint16_t k = 0; k < 100u; k++) {
+        link_fresh();
+        tick();
+        TEST_ASSERT_TRUE_MESSAGE(out.speed_mm_s == 0, "moved without a command");
+        in.speed_mm_s = in.speed_mm_s > 10 ? (int16_t)(in.speed_mm_s - 10) : 0;
+        in.now_ms += TICK_MS;
+    }
 }
 
 /* ---- avoid obstacle (passive motion safety) ----------------------------- */
@@ -394,10 +592,8 @@ void test_behaviour_avoid_abstains_when_mode_flag_clear(void)
 
 void test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance(void)
 {
-    in.mode_flags = BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
-    in.goal_active = true;
-    in.goal_x_mm = 3000;
-    in.goal_y_mm = 0;
+    modes(BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID);
+    goal_cmd(3000, 0);
     tick();
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_MOVE_TO_GOAL, out.layer);
     TEST_ASSERT_INT16_WITHIN(20, 0, out.steer_cdeg);
@@ -429,7 +625,7 @@ void test_behaviour_goal_seek_steers_toward_goal_and_stops_within_tolerance(void
 
 void test_behaviour_wall_steers_away_from_nearer_side(void)
 {
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID);
     set_range(10, 400u); /* wall front-right */
     set_range(11, 600u);
     tick();
@@ -453,10 +649,8 @@ void test_behaviour_wall_steers_away_from_nearer_side(void)
  * away) while that side has an echo closer than avoid_stop (300 mm). */
 void test_behaviour_wall_does_not_hand_over_towards_a_near_post_on_the_goals_side(void)
 {
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID;
-    in.goal_active = true;
-    in.goal_x_mm = 3000; /* 27 deg to the left */
-    in.goal_y_mm = 1500;
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_GOAL_SEEK | BHV_MODE_AVOID);
+    goal_cmd(3000, 1500); /* 27 deg to the left */
     set_range(2, 60u); /* a post 6 cm off, 60 deg left */
     tick();
     TEST_ASSERT_EQUAL_UINT8(BHV_LAYER_FOLLOW_WALL, out.layer);
@@ -474,7 +668,7 @@ void test_behaviour_wall_does_not_hand_over_towards_a_near_post_on_the_goals_sid
  * output as the tick working them out itself; a frame with a new seq is not served stale sums. */
 void test_behaviour_wall_precomputed_frame_matches_tick(void)
 {
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID);
     set_range(10, 400u);
     set_range(11, 600u);
     set_range(1, 900u);
@@ -534,7 +728,7 @@ static uint16_t canyon_run(uint16_t canyon_ms, int32_t *heading)
     behaviour_params_t p = behaviour_params;
     p.wall_canyon_ms = canyon_ms;
     behaviour_init(&p, &SONAR_RING_12_SDLG);
-    in.mode_flags = BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID;
+    modes(BHV_MODE_FOLLOW_WALL | BHV_MODE_AVOID);
     int32_t h = 0;
     int8_t last_sign = 0;
     uint16_t changes = 0u;
@@ -613,6 +807,12 @@ int main(void)
     RUN_TEST(test_behaviour_estop_stays_latched_until_armed);
     RUN_TEST(test_behaviour_watchdog_boot_stays_stopped_until_armed);
     RUN_TEST(test_behaviour_sensor_fault_stops_but_calib_defaulted_only_flags);
+    RUN_TEST(test_behaviour_heartbeats_after_link_loss_do_not_resume_a_stored_goal);
+    RUN_TEST(test_behaviour_setpoint_from_before_any_failsafe_is_not_obeyed_after_it);
+    RUN_TEST(test_behaviour_replayed_setpoint_is_held_until_a_newer_one_or_an_arm);
+    RUN_TEST(test_behaviour_manual_override_from_before_a_failsafe_is_held);
+    RUN_TEST(test_behaviour_follow_wall_waits_for_a_command_after_a_failsafe);
+    RUN_TEST(test_behaviour_no_back_off_without_a_command_after_a_failsafe);
     RUN_TEST(test_behaviour_avoid_runs_stop_backoff_wait_release_with_timings);
     RUN_TEST(test_behaviour_avoid_repeats_cycle_when_obstacle_stays);
     RUN_TEST(test_behaviour_avoid_ignores_obstacle_when_not_moving_forward);

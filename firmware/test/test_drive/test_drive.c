@@ -128,6 +128,34 @@ static void test_drive_raw_mode_passes_table_units_through(void)
     TEST_ASSERT_EQUAL_UINT16(drive_esc_us_from_byte(60u, 1), sim_servo_us(HAL_SERVO_THROTTLE));
 }
 
+/* Raw outputs read back through the tables (the limits apply to them): the steering angle and speed
+ * the car drives at those bytes, the dead band as 1 mm/s in its direction. */
+static void test_drive_raw_outputs_read_as_the_tables_physical_command(void)
+{
+    int16_t steer = 0, speed = 0;
+    drive_raw_physical(171u, 255u, 1, &steer, &speed); /* full lock left, full throttle */
+    TEST_ASSERT_EQUAL_INT16(2460, steer);
+    TEST_ASSERT_EQUAL_INT16(1995, speed);
+    drive_raw_physical(96u, 60u, -1, &steer, &speed);
+    TEST_ASSERT_EQUAL_INT16(-2460, steer);
+    TEST_ASSERT_INT16_WITHIN(1, -996, speed); /* 446 + 27 * 1549 / 76 mm/s, reverse */
+    drive_raw_physical(133u, 20u, 1, &steer, &speed);
+    TEST_ASSERT_EQUAL_INT16(0, steer);
+    TEST_ASSERT_EQUAL_INT16_MESSAGE(1, speed, "a dead-band byte is still forward");
+    drive_raw_physical(133u, 0u, -1, &steer, &speed);
+    TEST_ASSERT_EQUAL_INT16(0, speed);
+    /* differential: one duty on both sides, no turn, the faster side's table */
+    drive_cfg_t c = {DRIVE_DIFFERENTIAL, 0u, 0u, 0u};
+    drive_init(&c);
+    calib_table_t fast = {0u, {2u, {{10u, 100}, {50u, 3000}}}, {0u, {{0u, 0}}}};
+    TEST_ASSERT_EQUAL_INT(CALIB_OK, calib_set_table(CALIB_SPEED_RIGHT, &fast));
+    drive_raw_physical(200u, 255u, 1, &steer, &speed);
+    TEST_ASSERT_EQUAL_INT16(0, steer);
+    TEST_ASSERT_EQUAL_INT16_MESSAGE(3000, speed, "the right side is the faster one");
+    drive_raw_physical(0u, 40u, -1, &steer, &speed);
+    TEST_ASSERT_INT16_WITHIN(1, -2275, speed); /* right 100 + 30 * 2900 / 40 beats left 446 + 7 * 1549 / 76 */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -141,5 +169,6 @@ int main(void)
     RUN_TEST(test_drive_differential_turn_left_slows_left_side);
     RUN_TEST(test_drive_differential_spins_on_the_spot_when_nearly_stopped);
     RUN_TEST(test_drive_raw_mode_passes_table_units_through);
+    RUN_TEST(test_drive_raw_outputs_read_as_the_tables_physical_command);
     return UNITY_END();
 }

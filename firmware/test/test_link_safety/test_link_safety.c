@@ -1,4 +1,5 @@
-/* Bad commands: every class of bad input is refused (or clamped), answered and counted. */
+/* Bad commands: every class of bad input is refused (or clamped), answered and counted; only a
+ * command taken counts as a new one. */
 #include <math.h>
 #include <string.h>
 #include <unity.h>
@@ -109,12 +110,22 @@ static void test_link_command_for_another_system_is_ignored_and_counted(void)
     TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_refused);
 }
 
-static void test_link_command_for_another_component_is_ignored(void)
+/* Our system, a component it does not have: not acted on, not answered (nobody here speaks for that
+ * component), but counted with the refusals, since it was sent to this robot. */
+static void test_link_command_for_another_component_of_ours_is_refused_and_counted(void)
 {
     mavlink_msg_command_long_pack(HOST_SYS, HOST_COMP, &s_msg, US, 42, MAV_CMD_AGNAV_ESTOP, 0, 1, 0, 0, 0, 0, 0, 0);
     send_to_robot(&s_msg);
     TEST_ASSERT_FALSE(link_state()->estop);
-    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_other_target);
+    TEST_ASSERT_EQUAL_UINT8(0u, robot_sent(MAVLINK_MSG_ID_COMMAND_ACK));
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+    TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_other_target);
+    mavlink_msg_param_request_list_pack(HOST_SYS, HOST_COMP, &s_msg, US, 42);
+    send_to_robot(&s_msg);
+    mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, US, 190, 0, 300, 0, 0, 0, 1);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    TEST_ASSERT_EQUAL_UINT16(3u, link_state()->rx_refused);
 }
 
 static void setpoint(uint8_t target, int16_t steer, int16_t speed, uint8_t mode, uint16_t spwm)
@@ -137,6 +148,20 @@ static void test_link_setpoint_steer_beyond_half_turn_is_refused(void)
 {
     setpoint(US, -18001, 100, AGNAV_DRIVE_PHYSICAL, 0);
     TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+}
+
+/* The PWM fields are 0 in physical mode; beyond 3000 they are garbage in either mode. */
+static void test_link_physical_setpoint_with_pwm_fields_beyond_3000_is_refused(void)
+{
+    mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 0, 100, 0, 3001, AGNAV_DRIVE_PHYSICAL, 1);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    mavlink_msg_agnav_drive_setpoint_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 0, 100, 65535, 0, AGNAV_DRIVE_PHYSICAL, 2);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_FALSE(link_state()->setpoint.valid);
+    TEST_ASSERT_EQUAL_UINT16(2u, link_state()->rx_refused);
+    setpoint(US, 0, 100, AGNAV_DRIVE_PHYSICAL, 0);
+    TEST_ASSERT_TRUE(link_state()->setpoint.valid);
 }
 
 static void test_link_setpoint_unknown_mode_or_raw_pwm_range_is_refused(void)
@@ -291,6 +316,79 @@ static void test_link_goal_millimetres_are_the_truncated_float_product(void)
     TEST_ASSERT_FALSE_MESSAGE(link_state()->goal.active, "just beyond 10 km");
 }
 
+/* Each command taken moves the count of its kind on (behaviour's failsafe hold reads a change as a
+ * fresh command); a heartbeat, a parameter read and every refused command move none. */
+static void test_link_only_taken_commands_count_as_new(void)
+{
+    const link_state_t *ls = link_state();
+    mavlink_msg_heartbeat_pack(HOST_SYS, HOST_COMP, &s_msg, MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, 0, 0, 0);
+    send_to_robot(&s_msg);
+    mavlink_msg_param_request_read_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, "LINK_TIMEOUT_MS", -1);
+    send_to_robot(&s_msg);
+    setpoint(US, 0, 30000, AGNAV_DRIVE_PHYSICAL, 0);                    /* refused */
+    goal(MAV_FRAME_LOCAL_NED, 0u, NAN, 1.0f);                            /* refused */
+    command(US, MAV_CMD_AGNAV_SET_BEHAVIOURS, 2.0f, 0, 0);               /* refused */
+    mavlink_msg_manual_control_pack(HOST_SYS, HOST_COMP, &s_msg, US, 2000, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);                                               /* refused */
+    TEST_ASSERT_TRUE(ls->host_seen);
+    TEST_ASSERT_EQUAL_UINT8(0u, ls->setpoint.gen);
+    TEST_ASSERT_EQUAL_UINT8(0u, ls->goal.gen);
+    TEST_ASSERT_EQUAL_UINT8(0u, ls->manual.gen);
+    TEST_ASSERT_EQUAL_UINT8(0u, ls->behaviour_gen);
+
+    setpoint(US, 0, 300, AGNAV_DRIVE_PHYSICAL, 0);
+    setpoint(US, 0, 300, AGNAV_DRIVE_PHYSICAL, 0);
+    goal(MAV_FRAME_LOCAL_NED, 0u, 2.0f, 1.0f);
+    command(US, MAV_CMD_AGNAV_SET_BEHAVIOURS, 0.0f, 1.0f, 1.0f);
+    mavlink_msg_manual_control_pack(HOST_SYS, HOST_COMP, &s_msg, US, 500, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+    mavlink_msg_rc_channels_override_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 1500, 0, 1600, 0, 0, 0, 0, 0, 0, 0, 0,
+                                          0, 0, 0, 0, 0, 0, 0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT8(2u, ls->setpoint.gen);
+    TEST_ASSERT_EQUAL_UINT8(1u, ls->goal.gen);
+    TEST_ASSERT_EQUAL_UINT8(2u, ls->manual.gen);
+    TEST_ASSERT_EQUAL_UINT8(1u, ls->behaviour_gen);
+}
+
+static uint8_t s_calib_calls;
+static bool s_calib_refuses;
+
+static bool calib_stub(const mavlink_message_t *msg)
+{
+    (void)msg;
+    s_calib_calls++;
+    return s_calib_refuses;
+}
+
+/* A calibration message is handed to main's handler only when addressed to the robot; a broadcast
+ * is refused, one the handler refuses is counted. */
+static void test_link_calibration_refusals_and_broadcasts_are_counted(void)
+{
+    link_cfg_t cfg = {US, 1u, 2460, 2000, calib_stub, 0u, 0};
+    link_init(&cfg);
+    s_calib_calls = 0u;
+    s_calib_refuses = false;
+    mavlink_msg_agnav_calib_request_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 1, AGNAV_CALIB_ACTION_READ);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT8(1u, s_calib_calls);
+    TEST_ASSERT_EQUAL_UINT16(0u, link_state()->rx_refused);
+    s_calib_refuses = true;
+    mavlink_msg_agnav_calib_request_pack(HOST_SYS, HOST_COMP, &s_msg, US, 1, 1, 77u);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT8(2u, s_calib_calls);
+    TEST_ASSERT_EQUAL_UINT16(1u, link_state()->rx_refused);
+    mavlink_msg_agnav_calib_request_pack(HOST_SYS, HOST_COMP, &s_msg, 0u, 0u, 1, AGNAV_CALIB_ACTION_DEFAULTS);
+    send_to_robot(&s_msg);
+    static const uint16_t pwm[16] = {10, 255};
+    static const int16_t val[16] = {20, 1000};
+    mavlink_msg_agnav_calib_table_pack(HOST_SYS, HOST_COMP, &s_msg, 0u, 0u, 1, 2, pwm, val, 0, 0, 0);
+    send_to_robot(&s_msg);
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(2u, s_calib_calls, "a broadcast reached the calibration handler");
+    TEST_ASSERT_EQUAL_UINT16(3u, link_state()->rx_refused);
+    TEST_ASSERT_EQUAL_UINT8(1u, robot_sent(MAVLINK_MSG_ID_STATUSTEXT));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -301,9 +399,10 @@ int main(void)
     RUN_TEST(test_link_broadcast_estop_is_accepted);
     RUN_TEST(test_link_broadcast_arm_is_denied);
     RUN_TEST(test_link_command_for_another_system_is_ignored_and_counted);
-    RUN_TEST(test_link_command_for_another_component_is_ignored);
+    RUN_TEST(test_link_command_for_another_component_of_ours_is_refused_and_counted);
     RUN_TEST(test_link_setpoint_out_of_range_is_refused_and_stops);
     RUN_TEST(test_link_setpoint_steer_beyond_half_turn_is_refused);
+    RUN_TEST(test_link_physical_setpoint_with_pwm_fields_beyond_3000_is_refused);
     RUN_TEST(test_link_setpoint_unknown_mode_or_raw_pwm_range_is_refused);
     RUN_TEST(test_link_broadcast_setpoint_is_refused);
     RUN_TEST(test_link_refusal_texts_are_rate_limited_but_all_counted);
@@ -317,5 +416,7 @@ int main(void)
     RUN_TEST(test_link_param_set_broadcast_is_refused);
     RUN_TEST(test_link_param_set_rounds_as_the_float_expression);
     RUN_TEST(test_link_goal_millimetres_are_the_truncated_float_product);
+    RUN_TEST(test_link_only_taken_commands_count_as_new);
+    RUN_TEST(test_link_calibration_refusals_and_broadcasts_are_counted);
     return UNITY_END();
 }

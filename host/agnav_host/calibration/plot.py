@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -13,7 +14,7 @@ from .fit import FitResult
 __all__ = ["plot_fit", "require_matplotlib"]
 
 
-def require_matplotlib():  # type: ignore[no-untyped-def]
+def require_matplotlib() -> ModuleType:
     """Import matplotlib with the Agg backend, or raise RuntimeError saying how to install it."""
     try:
         import matplotlib

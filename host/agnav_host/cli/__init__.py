@@ -55,6 +55,7 @@ log = logging.getLogger(__name__)
 #: The modules that register the subcommands, in the order of ``agnav --help``
 COMMAND_MODULES: tuple[str, ...] = (
     "agnav_host.cli.sim",
+    "agnav_host.cli.field",
     "agnav_host.cli.perception",
     "agnav_host.cli.planners",
     "agnav_host.cli.bench",

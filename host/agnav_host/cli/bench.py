@@ -138,7 +138,12 @@ def _cmd_bench(ns: argparse.Namespace) -> int:
     if ns.fresh and ns.out is None and ns.suite != "planners":
         return _bad(ns.suite, "--fresh needs --out (without it nothing is stored)")
     handler = {"yards": _yards, "planners": _planners, "timed": _timed, "perception": _perception}[ns.suite]
-    return handler(ns)
+    from ..sweep import RayUnreachable
+
+    try:
+        return handler(ns)
+    except RayUnreachable as e:  # --ray auto or ADDRESS with no cluster there
+        return _bad(ns.suite, str(e))
 
 
 def _options_given(ns: argparse.Namespace) -> list[str]:
@@ -370,7 +375,7 @@ def _planners(ns: argparse.Namespace) -> int:
             if not ns.quiet:  # the bar moves only when a run ends: say at once what is under way
                 print(f"agnav bench: {n_runs} runs on {backend.workers(n_runs)} worker(s){_where(backend)}, results to {out}",
                       file=sys.stderr, flush=True)
-            results = run_suite(suite, ns.jobs, None if ns.quiet else _planners_bar(), backend=backend, store=store)
+            results = run_suite(suite, ns.jobs, backend=backend, store=store, sweep_progress=progress_line(not ns.quiet))
     except KeyboardInterrupt:
         results = _interrupted(ns, store)
     except Exception as e:  # noqa: BLE001  (the sweep's failures, as for every suite)
@@ -401,14 +406,6 @@ def _sweep_failure(ns: argparse.Namespace, e: BaseException, store: Any) -> int:
     if isinstance(e, OSError):
         return report_write_failure(f"bench {ns.suite}", str(store.out), e)
     raise e
-
-
-def _planners_bar() -> Callable[[int, int, dict[str, Any]], None]:
-    """The planner bench's progress: a bar that moves as each run ends, and the run that ended."""
-    from .progress import bar_line
-
-    show = bar_line(48)
-    return lambda done, total, r: show(done, total, f"{r['scenario']}/{r['planner']}/s{r['seed']}: {r['end']}")
 
 
 def _timed(ns: argparse.Namespace) -> int:
@@ -480,3 +477,7 @@ def _script_suite(ns: argparse.Namespace, argv: list[str]) -> int:
         return 1
     except KeyboardInterrupt:
         return _interrupted(ns, store)
+    except Exception as e:  # noqa: BLE001  (a run of the script failed and the script did not catch it)
+        print(f"agnav bench {ns.suite}: a run of bench/{SCRIPT_SUITES[ns.suite][0]}.py failed: "
+              f"{type(e).__name__}: {e}", file=sys.stderr)
+        return 1

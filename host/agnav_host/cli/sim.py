@@ -199,7 +199,7 @@ def _cmd_sim(ns: argparse.Namespace) -> int:
     elif row_run:
         print(f"  distance from the row: not measured (the robot drove less than the first {ROW_SETTLE_M:g} m; "
               "no row_distance.json)")
-    if field is not None:
+    if field is not None and sc.field is not None:
         print(f"  field ({sc.field.pattern}): {field.rows_completed}/{len(field.expected)} lanes in the pattern's order, "
               f"pattern {'completed' if field.pattern_completed else 'not completed'}, {field.plants_touched} plants "
               f"touched; Field Robot Event: distance in rows {field.distance_m:.1f} m, time {field.time_s:.1f} s, "

@@ -21,8 +21,9 @@ def all_cases() -> list[FaultCase]:
     try:
         from .firmware_faults import FIRMWARE_CASES
     except ImportError:
-        FIRMWARE_CASES = ()
-    cases += FIRMWARE_CASES
+        pass
+    else:
+        cases += FIRMWARE_CASES
     from .laser_faults import LASER_CASES
 
     cases += LASER_CASES

@@ -8,10 +8,13 @@ on it: the true robot speed from the world simulator is the judge.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from ._core import FaultCase, FaultOutcome
 from .link_faults import SPEED_MM_S, TICK_MS, DriveTrace, drive_with_link_faults
+
+if TYPE_CHECKING:
+    from ..sil import SilSession
 
 __all__ = ["COMMAND_CASES", "SIGNING_CASES"]
 
@@ -26,7 +29,7 @@ class _Sender:
     """Host logic: heartbeat + a good setpoint every 100 ms until T_BAD_S; from then on ``bad(s)``
     instead of the setpoint (heartbeats continue unless ``bad_replaces_heartbeat``)."""
 
-    def __init__(self, bad: Callable[[Any], None], good: bool = True, replace_hb: bool = False,
+    def __init__(self, bad: Callable[[SilSession], None], good: bool = True, replace_hb: bool = False,
                  keep_good: bool = False) -> None:
         self.bad = bad
         self.good = good
@@ -35,7 +38,7 @@ class _Sender:
         self.next_us = 0
         self.t0_us = 0
 
-    def __call__(self, s, t_us: int) -> None:  # noqa: ANN001
+    def __call__(self, s: SilSession, t_us: int) -> None:
         if t_us < self.next_us:
             return
         self.next_us = t_us + 100_000
@@ -48,9 +51,9 @@ class _Sender:
             s.host.setpoint(0, SPEED_MM_S)
 
 
-def _run(bad: Callable[[Any], None], seconds: float = T_BAD_S + 3.0, good: bool = True,
+def _run(bad: Callable[[SilSession], None], seconds: float = T_BAD_S + 3.0, good: bool = True,
          replace_hb: bool = False, keep_good: bool = False) -> DriveTrace:
-    return drive_with_link_faults(seconds, seed=9, driver=_Sender(bad, good, replace_hb, keep_good))  # type: ignore[arg-type]
+    return drive_with_link_faults(seconds, seed=9, driver=_Sender(bad, good, replace_hb, keep_good))
 
 
 def _stopped_within(tr: DriveTrace, t_us: int, limit_ms: float) -> float:
@@ -99,7 +102,7 @@ def _case_unknown_command() -> FaultOutcome:
 
 
 def _case_nan_goal() -> FaultOutcome:
-    def bad(s) -> None:  # noqa: ANN001
+    def bad(s: SilSession) -> None:
         d = s.host._d  # noqa: SLF001
         s.host._send(d.MAVLink_set_position_target_local_ned_message(  # noqa: SLF001
             0, s.host.target_system, s.host.target_component, d.MAV_FRAME_LOCAL_NED, 0b110111111000,
@@ -113,7 +116,7 @@ def _case_nan_goal() -> FaultOutcome:
 
 
 def _case_other_system() -> FaultOutcome:
-    def bad(s) -> None:  # noqa: ANN001
+    def bad(s: SilSession) -> None:
         h = s.host
         h.target_system = 7
         h.setpoint(0, SPEED_MM_S)
@@ -130,7 +133,7 @@ def _case_other_system() -> FaultOutcome:
 def _case_truncated() -> FaultOutcome:
     """A setpoint whose payload is cut to 4 bytes (steer, speed only) with a valid CRC: MAVLink 2
     zero-fills it, so it reads as a broadcast and must be refused."""
-    def bad(s) -> None:  # noqa: ANN001
+    def bad(s: SilSession) -> None:
         from ..protocol import dialect
 
         d = dialect()
@@ -184,7 +187,7 @@ def _sign(codec: Any, key: bytes | None, t_s: float) -> None:
     codec.signing.timestamp = int((t_s - 1420070400) * 100_000)
 
 
-def _provision(s) -> None:  # noqa: ANN001
+def _provision(s: SilSession) -> None:
     """The key goes in over the unsigned provisioning window after power-on; from then on the host
     signs everything."""
     from ..link.keys import setup_signing_message
@@ -199,7 +202,7 @@ def _signing_case(kind: str) -> FaultOutcome:
     recorded: list[bytes] = []
     state = {"switched": False}
 
-    def bad(s) -> None:  # noqa: ANN001
+    def bad(s: SilSession) -> None:
         h = s.host
         if kind == "unsigned" and not state["switched"]:
             _sign(h._mav, None, 0)  # noqa: SLF001
@@ -220,7 +223,7 @@ def _signing_case(kind: str) -> FaultOutcome:
             h.setpoint(0, SPEED_MM_S)
 
     class _Rec(_Sender):
-        def __call__(self, s, t_us: int) -> None:  # noqa: ANN001
+        def __call__(self, s: SilSession, t_us: int) -> None:
             before = t_us < self.next_us
             super().__call__(s, t_us)
             if not before and (t_us - self.t0_us) * 1e-6 < T_BAD_S:

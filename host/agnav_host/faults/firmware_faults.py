@@ -8,10 +8,16 @@ health-only faults, carry on with defaults and say so).
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from ._core import FaultCase, FaultOutcome
 from .link_faults import DT_S, TICK_MS, DriveTrace, drive_with_link_faults
+
+if TYPE_CHECKING:
+    from ..sil import SilSession
+
+#: something done to the running session at a set time (a fault injected, a value read back)
+SessionEvent = Callable[["SilSession"], object]
 
 __all__ = ["FIRMWARE_CASES"]
 
@@ -34,7 +40,7 @@ def _stop_summary(tr: DriveTrace, t_inj: int) -> tuple[float, float, float, bool
     return ((t_stop - t_inj) / 1000.0, (tr.t_us[i_still] - t_inj) / 1000.0, tr.x_m[i_still] - tr.x_m[i_inj], stayed)
 
 
-def _sensor_case(inject: Callable, flag: int, limit_ms: float) -> Callable[[], FaultOutcome]:  # noqa: ANN001
+def _sensor_case(inject: SessionEvent, flag: int, limit_ms: float) -> Callable[[], FaultOutcome]:
     def run() -> FaultOutcome:
         tr = drive_with_link_faults(T_INJECT_S + 4.0, seed=5, events=[(T_INJECT_S, inject)])
         t_inj = tr.t0_us + int(T_INJECT_S * 1e6)
@@ -81,14 +87,14 @@ def _eeprom_case(record: str) -> FaultOutcome:
     stored: dict[str, int] = {}
     reloaded: dict[str, int] = {}
 
-    def inject(s) -> None:  # noqa: ANN001
+    def inject(s: SilSession) -> None:
         # the robot profile's parameters as stored in EEPROM before the damage
         stored.update({k: s.fw.param_get(k) for k in s.plant.firmware_params()})
         for slot in (record, f"{record}_copy"):  # both slots: the copy stands in for a damaged main slot
             s.fw.corrupt_record(slot, offset=4, length=1, xor_mask=0x10)
         s.fw.fault_reset("external")
 
-    def read_back(s) -> None:  # noqa: ANN001
+    def read_back(s: SilSession) -> None:
         reloaded.update({k: s.fw.param_get(k) for k in stored})
 
     tr = drive_with_link_faults(T_INJECT_S + 3.0, seed=7, events=[(T_INJECT_S, inject), (T_INJECT_S + 2.5, read_back)])
@@ -117,13 +123,13 @@ def _isr_burst_case() -> FaultOutcome:
     gaps: list[int] = []
     resets: list[int] = []
 
-    def start(s) -> None:  # noqa: ANN001
+    def start(s: SilSession) -> None:
         s.fw.kick_gap_max_us()  # reset the maximum
         resets.append(s.fw.reset_count)
         s.fw.set_isr_cost_us(8)
         s.fw.isr_burst(0, 40_000, 25)
 
-    def end(s) -> None:  # noqa: ANN001
+    def end(s: SilSession) -> None:
         gaps.append(s.fw.kick_gap_max_us())
         resets.append(s.fw.reset_count)
         s.fw.set_isr_cost_us(0)
@@ -136,7 +142,7 @@ def _isr_burst_case() -> FaultOutcome:
                         f"{'no reset' if no_reset else 'WATCHDOG RESET'}", ok, {"tick_gap_ms": gap_ms})
 
 
-def _inject(kind: str, idx: int, mode: str) -> Callable:  # noqa: ANN001
+def _inject(kind: str, idx: int, mode: str) -> SessionEvent:
     return lambda s: getattr(s.fw, f"fault_{kind}")(idx, mode)
 
 

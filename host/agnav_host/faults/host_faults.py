@@ -24,14 +24,15 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 from ._core import FaultCase, FaultOutcome
 
 __all__ = ["HOST_CASES", "full_disk"]
 
 
-def _agnav(*args: str, timeout: float = 300.0, preexec=None) -> subprocess.CompletedProcess:  # noqa: ANN001
+def _agnav(*args: str, timeout: float = 300.0,
+           preexec: Callable[[], None] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "agnav_host.cli", *args], capture_output=True, text=True,
                           timeout=timeout, preexec_fn=preexec)
 
@@ -56,14 +57,14 @@ def full_disk(size_kib: int = 64) -> Iterator[tuple[Path, str]]:
         shutil.rmtree(d, ignore_errors=True)
 
 
-def _fsize_limit(limit_bytes: int):  # noqa: ANN202
+def _fsize_limit(limit_bytes: int) -> Callable[[], None]:
     def apply() -> None:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, resource.RLIM_INFINITY))
     return apply
 
 
-def _clean_error(p: subprocess.CompletedProcess) -> tuple[bool, str]:
+def _clean_error(p: subprocess.CompletedProcess[str]) -> tuple[bool, str]:
     err = p.stderr.strip()
     lines = [ln for ln in err.splitlines() if ln.startswith("agnav")]
     return "Traceback" not in err, (lines[0] if lines else err.splitlines()[-1] if err else "(no message)")
@@ -234,7 +235,8 @@ class _PtyBridge:
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
-                r, _, _ = select.select([self.master, self.sock], [], [], 0.05)
+                watched: list[int | socket.socket] = [self.master, self.sock]
+                r, _, _ = select.select(watched, [], [], 0.05)
                 if self.master in r:
                     data = os.read(self.master, 4096)
                     if data:
@@ -279,7 +281,8 @@ def _case_serial_unplugged() -> FaultOutcome:
             if t_fail is not None and t_down is not None:
                 break
             time.sleep(0.02)
-        thread_alive = ep._thread.is_alive() if hasattr(ep, "_thread") else True  # noqa: SLF001
+        io_thread = ep._thread  # noqa: SLF001
+        thread_alive = io_thread is not None and io_thread.is_alive()
         ev = next((e for _, e in ep.events if "transport failed" in e), "NO EVENT")
         ep.close()
         host = ep.mav.srcSystem

@@ -7,37 +7,44 @@ is back the run goes on."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._core import FaultCase, FaultOutcome
+
+if TYPE_CHECKING:
+    from ..types import LaserScan
 
 __all__ = ["LASER_CASES"]
 
 T_FAULT_S, FAULT_LEN_S = 3.0, 3.0
 
 
-def _broken(mode: str):  # noqa: ANN202
-    rng = np.random.default_rng(1)
-    frozen: list = []
+class _BrokenLaser:
+    """The host's laser_fault: each scan as the laser delivers it, broken (``mode``) from T_FAULT_S for
+    FAULT_LEN_S after ``t0_s`` (the end of provisioning, set by the case)."""
 
-    def fault(scan, t_s: float):  # noqa: ANN001, ANN202
+    def __init__(self, mode: str) -> None:
+        self.mode = mode
+        self.t0_s = 0.0
+        self._rng = np.random.default_rng(1)
+        self._frozen: list[LaserScan] = []
+
+    def __call__(self, scan: LaserScan, t_s: float) -> LaserScan:
         from ..types import LaserScan
 
-        if not T_FAULT_S <= t_s - fault.t0_s < T_FAULT_S + FAULT_LEN_S:  # type: ignore[attr-defined]
+        if not T_FAULT_S <= t_s - self.t0_s < T_FAULT_S + FAULT_LEN_S:
             return scan
-        if mode == "nan":
+        if self.mode == "nan":
             r = np.full(len(scan.ranges_m), np.nan)
-        elif mode == "garbage":
-            r = rng.uniform(-5.0, 60.0, len(scan.ranges_m))
+        elif self.mode == "garbage":
+            r = self._rng.uniform(-5.0, 60.0, len(scan.ranges_m))
         else:  # frozen: the last good buffer again, same time stamp
-            if not frozen:
-                frozen.append(scan)
-            return frozen[0]
+            if not self._frozen:
+                self._frozen.append(scan)
+            return self._frozen[0]
         return LaserScan(scan.angle_min_rad, scan.angle_increment_rad, r, scan.range_max_m, scan.stamp_s, scan.pose)
-
-    fault.t0_s = 0.0  # type: ignore[attr-defined]
-    return fault
 
 
 def _laser_case(mode: str) -> FaultOutcome:
@@ -47,12 +54,12 @@ def _laser_case(mode: str) -> FaultOutcome:
 
     sc = load_scenario("corridor_obstacles")
     host = PlannerHost(sc, "him")
-    fault = _broken(mode)
+    fault = _BrokenLaser(mode)
     host.laser_fault = fault
     s = SilSession(sc, 0, SilConfig(world_dt_s=0.01), host)
     try:
         s.provision()
-        fault.t0_s = s.t_s  # type: ignore[attr-defined]
+        fault.t0_s = s.t_s
         t0 = s.t_us
         moving: list[tuple[float, bool, float]] = []
         g = sc.goals[-1]

@@ -11,8 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
 
 from ._core import FaultCase, FaultOutcome
+
+if TYPE_CHECKING:
+    from ..sil import LinkFaults, SilSession
 
 __all__ = ["LINK_CASES", "DriveTrace", "drive_with_link_faults"]
 
@@ -20,6 +24,14 @@ SPEED_MM_S = 400
 TIMEOUT_MS = 500.0  # LINK_TIMEOUT_MS default (behaviour.c)
 TICK_MS = 20.0  # 50 Hz control tick
 DT_S = 0.002  # world step: the resolution of every time figure below
+
+
+class HostDriver(Protocol):
+    """The host side of a fault run: called after every world step; ``t0_us`` is set to the end of provisioning."""
+
+    t0_us: int
+
+    def __call__(self, s: SilSession, t_us: int) -> None: ...
 
 
 class _Driver:
@@ -34,7 +46,7 @@ class _Driver:
         self.setpoints_sent_us: list[int] = []
         self.t0_us = 0
 
-    def __call__(self, s, t_us: int) -> None:  # noqa: ANN001 (SilSession)
+    def __call__(self, s: SilSession, t_us: int) -> None:
         if t_us < self.next_us:
             return
         self.next_us = t_us + 100_000
@@ -56,7 +68,7 @@ class DriveTrace:
     deliveries_us: list[int] = field(default_factory=list)  # uplink frames reaching the firmware's UART
     statuses: list[tuple[int, int, int, int]] = field(default_factory=list)  # (t_us, layer, reason, failsafe flags) the host saw
     texts: list[tuple[int, str]] = field(default_factory=list)  # STATUSTEXT the host saw
-    acks: list = field(default_factory=list)  # COMMAND_ACK the host saw
+    acks: list[Any] = field(default_factory=list)  # COMMAND_ACK the host saw
     # SYS_STATUS errors_count1..4 at the end: refusals, unsigned, wrong key, replayed frames dropped
     sys_status_counters: tuple[int, ...] = ()
     t0_us: int = 0
@@ -102,9 +114,11 @@ class DriveTrace:
         return len(self.t_us) - 1
 
 
-def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, up_faults=None, down_faults=None,  # noqa: ANN001
-                           driver: _Driver | None = None, cut_at_s: float | None = None,
-                           restore_at_s: float | None = None, events=(), firmware_params=()) -> DriveTrace:  # noqa: ANN001
+def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, up_faults: LinkFaults | None = None,
+                           down_faults: LinkFaults | None = None, driver: HostDriver | None = None,
+                           cut_at_s: float | None = None, restore_at_s: float | None = None,
+                           events: Iterable[tuple[float, Callable[[SilSession], object]]] = (),
+                           firmware_params: Iterable[tuple[str, int]] = ()) -> DriveTrace:
     """Run the SIL with the given uplink faults and return the trace (see :class:`DriveTrace`).
     ``events``: (t_s, fn(session)) called once when the session clock passes t_s after provisioning
     (fault injection into the firmware's hardware)."""
@@ -115,7 +129,7 @@ def drive_with_link_faults(duration_s: float, seed: int = 0, loss: float = 0.0, 
     cfg = SilConfig(world_dt_s=DT_S, record_outputs=False, uplink=LinkParams(loss=loss),
                     firmware_params=tuple(firmware_params))
     pending = sorted(events, key=lambda e: e[0])
-    drv = driver or _Driver()
+    drv: HostDriver = driver or _Driver()
     s = SilSession(sc, seed, cfg, drv)
     tr = DriveTrace()
     try:

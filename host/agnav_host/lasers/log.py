@@ -229,10 +229,11 @@ class LaserLogWriter:
             d = self._decl.get(laser_id)
             if d is None:
                 raise ValueError(f"laser {laser_id} written before it was declared (declare() it first)")
-            geometry = {"angle_min_rad": float(scan.angle_min_rad), "angle_increment_rad": float(scan.angle_increment_rad),
+            angle_min, angle_inc = float(scan.angle_min_rad), float(scan.angle_increment_rad)
+            geometry = {"angle_min_rad": angle_min, "angle_increment_rad": angle_inc,
                         "n_beams": n, "range_max_m": _range_max_json(float(scan.range_max_m))}
             if any(d[k] != v for k, v in geometry.items()):  # a new mode: declare the new geometry first
-                if n < 1 or not (math.isfinite(geometry["angle_min_rad"]) and math.isfinite(geometry["angle_increment_rad"])):
+                if n < 1 or not (math.isfinite(angle_min) and math.isfinite(angle_inc)):
                     raise ValueError(f"laser {laser_id}: a scan needs beams and finite angles, got {n} beams from "
                                      f"{scan.angle_min_rad!r} by {scan.angle_increment_rad!r}")
                 self._declare_locked({**d, **geometry})
@@ -457,9 +458,9 @@ class LaserLogReader:
                 self._cut(_REC.size + len(payload))
                 return None
             lid, t, n = _SCAN.unpack(payload)
-            decl = self._decl.get(lid)
-            if decl is None:
+            if lid not in self._decl:
                 raise self._error(at, f"SCAN of laser {lid} before its LASR declaration")
+            decl = self._decl[lid]
             if n != decl.n_beams:
                 raise self._error(at, f"SCAN of laser {lid} has {n} beams, its declaration (byte {decl.offset}) "
                                       f"says {decl.n_beams}")

@@ -76,8 +76,10 @@ import struct
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from .base import (
     LaserAddressError,
@@ -88,6 +90,12 @@ from .base import (
     ThreadedLaser,
     WrongDeviceError,
 )
+
+if TYPE_CHECKING:
+    import serial  # pyserial, imported when a port is opened
+
+    from ..types import LaserScan
+    from . import LaserUrl
 
 __all__ = [
     "SYNC", "SYNC2", "CMD_STOP", "CMD_RESET", "CMD_SCAN", "CMD_FORCE_SCAN", "CMD_EXPRESS_SCAN", "CMD_GET_INFO",
@@ -392,11 +400,12 @@ class SampleBlock:
                 for s, q, a, d in zip(self.start, self.quality, self.angle_q6, self.distance_q2)]
 
 
-def _valid_rows(rows: np.ndarray) -> np.ndarray:
+def _valid_rows(rows: np.ndarray) -> npt.NDArray[np.bool_]:
     b0 = rows[:, 0].astype(np.int64)
     b1 = rows[:, 1].astype(np.int64)
     b2 = rows[:, 2].astype(np.int64)
-    return ((b0 & 1) != (b0 >> 1 & 1)) & (b1 & 1 == 1) & ((b1 >> 1 | b2 << 7) < ANGLE_Q6_FULL)
+    valid: npt.NDArray[np.bool_] = ((b0 & 1) != (b0 >> 1 & 1)) & (b1 & 1 == 1) & ((b1 >> 1 | b2 << 7) < ANGLE_Q6_FULL)
+    return valid
 
 
 def _decode_rows(rows: np.ndarray) -> SampleBlock:
@@ -595,7 +604,7 @@ class RplidarScanner(ThreadedLaser):
     min_samples = 5
     spinup_s = 3.0  # after SCAN, the wait for the first samples allowed on top of stall_s
 
-    def __init__(self, url, mount: LaserMount | None = None) -> None:  # url: LaserUrl
+    def __init__(self, url: LaserUrl, mount: LaserMount | None = None) -> None:
         super().__init__(url.text, mount)
         from . import LaserUrlError  # the package is loaded by the time a driver is built
 
@@ -631,15 +640,15 @@ class RplidarScanner(ThreadedLaser):
         self.device_info: DeviceInfo | None = None
         self.health: Health | None = None
         self.sample_time_s: float | None = None  # from GET_SAMPLERATE
-        self._ser = None
+        self._ser: serial.Serial | None = None
         self._stream = SampleStream()
         self._revs = RevolutionAssembler(self.min_samples)
-        self._ready: deque = deque()
+        self._ready: deque[LaserScan] = deque()
         self._problem = ""
         self._last_data = 0.0
 
     # ---- connection ----------------------------------------------------------------------------------------
-    def _open(self):
+    def _open(self) -> serial.Serial:
         import serial  # pyserial
 
         ser = serial.Serial()
@@ -668,7 +677,7 @@ class RplidarScanner(ThreadedLaser):
             self._disconnect()
             raise
 
-    def _identify_and_scan(self, ser, timeout_s: float) -> LaserInfo:
+    def _identify_and_scan(self, ser: serial.Serial, timeout_s: float) -> LaserInfo:
         answer_s = min(self.answer_timeout_s, max(timeout_s, 0.2))
         self._quiet(ser)
         try:
@@ -713,13 +722,13 @@ class RplidarScanner(ThreadedLaser):
         return LaserInfo(kind=self.kind, address=self.path, model=info.describe(), serial=info.serial_hex,
                          stamps="arrival", latency_s=self.latency_s, scan_hz=0.0)
 
-    def _quiet(self, ser) -> None:
+    def _quiet(self, ser: serial.Serial) -> None:
         """STOP, wait for the bytes in flight, drop them (a scan left running, the boot text after a reset)."""
         ser.write(request(CMD_STOP))
         time.sleep(0.05)
         ser.reset_input_buffer()
 
-    def _read_exact(self, ser, n: int, timeout_s: float, what: str, descriptor: bool) -> bytes:
+    def _read_exact(self, ser: serial.Serial, n: int, timeout_s: float, what: str, descriptor: bool) -> bytes:
         """Up to ``n`` bytes within ``timeout_s``. For a descriptor: LaserAddressError when nothing came,
         WrongDeviceError (saying what came) when it does not start ``A5 5A``."""
         end = time.monotonic() + timeout_s
@@ -748,7 +757,7 @@ class RplidarScanner(ThreadedLaser):
                 f"descriptor (A5 5A ...): is this the scanner's port, at the right baud rate ({self.baud})?")
         return data
 
-    def _ask(self, ser, cmd: int, want: Descriptor, timeout_s: float) -> bytes:
+    def _ask(self, ser: serial.Serial, cmd: int, want: Descriptor, timeout_s: float) -> bytes:
         what = _COMMAND_NAMES.get(cmd, f"0x{cmd:02X}")
         ser.write(request(cmd))
         expect_descriptor(self._read_exact(ser, DESCRIPTOR_LEN, timeout_s, what, True), want, what)
@@ -783,7 +792,7 @@ class RplidarScanner(ThreadedLaser):
             pass
 
     # ---- reading -------------------------------------------------------------------------------------------
-    def _read_scan(self):
+    def _read_scan(self) -> LaserScan | None:
         if self._ready:
             return self._ready.popleft()
         if self._problem:
@@ -816,7 +825,7 @@ class RplidarScanner(ThreadedLaser):
             return self._ready.popleft()
         return None
 
-    def _to_scan(self, rev: Revolution):
+    def _to_scan(self, rev: Revolution) -> LaserScan:
         from ..types import LaserScan
 
         n = len(rev)

@@ -657,7 +657,7 @@ class _SerialLink:
     def recv(self, timeout_s: float) -> bytes:
         end = time.monotonic() + timeout_s
         while True:
-            data = self.ser.read(self.ser.in_waiting or 1)
+            data: bytes = self.ser.read(self.ser.in_waiting or 1)
             if data:
                 more = self.ser.in_waiting
                 return data + self.ser.read(more) if more else data

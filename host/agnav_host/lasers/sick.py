@@ -903,8 +903,8 @@ def encode_scandata(tel: ScanTelegram, cola: str, kind: str | None = None) -> by
         _write_channel(w, ch, 8)
     w.uint(0 if tel.position is None else 1, 16)
     if tel.position is not None:
-        for v in tel.position[:6]:
-            w.real(float(v))
+        for coord in tel.position[:6]:
+            w.real(float(coord))
         w.uint(int(tel.position[6]), 8)
     for text in (tel.device_name, tel.comment):
         w.uint(0 if text is None else 1, 16)
@@ -1244,6 +1244,7 @@ class SickScanner(ThreadedLaser):
         if (cmd.kind, cmd.name) != ("sRA", "LMDscandata"):
             return None
         sent, self._poll_sent = self._poll_sent, None
+        assert sent is not None  # set when the poll went out; an error answer raised above
         tel = parse_scandata(cmd)
         hz = tel.scan_frequency_hz if tel.scan_frequency > 0 else 15.0
         self._next_poll = sent + 1.0 / hz

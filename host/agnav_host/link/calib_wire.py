@@ -125,8 +125,9 @@ class WireTable:
             raise ValueError("CalibTable needs the positive side above neutral; this table is mirrored")
         steer = self.table_id == TABLE_STEER
         k = cdeg_to_rad(1.0) if steer else milli_to_si(1.0)
-        pos = [(p, v) for p, v in self.pos if p != self.neutral_pwm]
-        neg = [(p, v) for p, v in self.neg if p != self.neutral_pwm]
+        # points in PWM and wire units; a dead-band edge sits half a step off neutral
+        pos: list[tuple[float, float]] = [(p, v) for p, v in self.pos if p != self.neutral_pwm]
+        neg: list[tuple[float, float]] = [(p, v) for p, v in self.neg if p != self.neutral_pwm]
         if len(pos) == 1:  # the zero point carried the side: give it back as the dead-band edge
             pos = [(self.neutral_pwm + 0.5, 0.0)] + pos if self.pos[0][0] == self.neutral_pwm else pos
         if len(neg) == 1:

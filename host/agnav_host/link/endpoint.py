@@ -254,7 +254,7 @@ class Subscription:
         return m
 
     def drain(self) -> list[Any]:
-        out = []
+        out: list[Any] = []
         while True:
             try:
                 m = self.q.get_nowait()

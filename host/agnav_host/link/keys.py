@@ -23,6 +23,8 @@ import hashlib
 import os
 import secrets
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 __all__ = ["KeyError_", "KeyWriteError", "default_key_path", "new_key", "load_key", "fingerprint", "mavlink_timestamp",
            "setup_signing_message", "CLEAR_KEY"]
@@ -92,8 +94,8 @@ def mavlink_timestamp(unix_s: float) -> int:
     return max(0, int((unix_s - _EPOCH_2015_S) * 100_000))
 
 
-def setup_signing_message(dialect: object, key: bytes, target_system: int, target_component: int = 1,
-                          unix_s: float | None = None) -> object:
+def setup_signing_message(dialect: ModuleType, key: bytes, target_system: int, target_component: int = 1,
+                          unix_s: float | None = None) -> Any:
     """SETUP_SIGNING for the robot: ``key`` (32 bytes; :data:`CLEAR_KEY` clears) and the initial
     timestamp (now, unless ``unix_s``). Pack it with the codec that should (or should not) sign it."""
     import time
@@ -101,4 +103,4 @@ def setup_signing_message(dialect: object, key: bytes, target_system: int, targe
     if len(key) != 32:
         raise ValueError("MAVLink signing key must be 32 bytes")
     ts = mavlink_timestamp(time.time() if unix_s is None else unix_s)
-    return dialect.MAVLink_setup_signing_message(target_system, target_component, list(key), ts)  # type: ignore[attr-defined]
+    return dialect.MAVLink_setup_signing_message(target_system, target_component, list(key), ts)

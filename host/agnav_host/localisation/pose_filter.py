@@ -150,7 +150,7 @@ class PoseFilter:
             lx, ly = float(self.posts.xy[sg.index, 0]), float(self.posts.xy[sg.index, 1])
             base = self.pose
 
-            def h(v: FloatArray) -> FloatArray:
+            def h(v: FloatArray, lx: float = lx, ly: float = ly) -> FloatArray:
                 q = extrapolate(Pose2D(float(v[0]), float(v[1]), float(v[2])), self.speed_m_s, self.yaw_rate_rad_s, dt)
                 return np.array(_range_bearing(q, self.mount, lx, ly))
 

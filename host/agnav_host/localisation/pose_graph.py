@@ -136,7 +136,7 @@ class PoseGraph:
         # sparsity pattern of H: blocks (i,i), (j,j), (i,j), (j,i) of every edge
         rows3 = np.arange(3)
         it = 0
-        for it in range(1, iterations + 1):
+        for it in range(1, iterations + 1):  # noqa: B007 -- the count is read after the loop
             w = om * s[:, None, None]
             at_w = np.transpose(a, (0, 2, 1)) @ w
             bt_w = np.transpose(b, (0, 2, 1)) @ w

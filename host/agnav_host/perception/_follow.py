@@ -15,9 +15,11 @@ directly, an Ackermann robot the steering angle ``atan(L w / v)``).
 from __future__ import annotations
 
 import math
+from typing import Any, cast
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from ..types import DriveCommand, FloatArray, Observation, Pose2D, norm_angle_rad
 from ._rows import ROW_METHODS, RowEstimate, RowParams, detect_rows_points
@@ -256,7 +258,7 @@ def detect_single_row(pts: ScanPoints, side: str, x_min_m: float = -1.0, x_max_m
     if len(x) < 6:
         return None
     keep = np.ones(len(x), dtype=bool)
-    coef = np.zeros(3)
+    coef: npt.NDArray[np.floating[Any]] = np.zeros(3)
     for _ in range(3):
         if keep.sum() < 6:
             return None
@@ -343,7 +345,7 @@ class _RowFaceMap:
         self._xy = np.zeros((0, 2))
         self._wt = np.zeros(0)
         self._seen_s = np.zeros(0)
-        self.coef: FloatArray | None = None  # y = sum coef[i] x^i in the robot frame at fit_pose
+        self.coef: npt.NDArray[np.floating[Any]] | None = None  # y = sum coef[i] x^i in the robot frame at fit_pose
         self.fit_pose = np.zeros(3)
 
     def moved_to(self, t: float, pose: Pose2D) -> None:
@@ -412,7 +414,7 @@ class _RowFaceMap:
         if wt.sum() < 10:
             return None
         b = np.floor((rx + p.window_back_m) / p.bin_m).astype(int)
-        n = np.bincount(b, wt)
+        n = cast(FloatArray, np.bincount(b, wt))  # with weights: float sums, not the int counts its stubs say
         ok = n > 0
         bx = np.bincount(b, rx * wt)[ok] / n[ok]
         by = np.bincount(b, ry * wt)[ok] / n[ok]

@@ -399,7 +399,7 @@ def _refine(side: ScanXY, mask: np.ndarray | None, tol: float, phi: float, c: fl
     """Inliers of a side: the given mask, then (after the joint fit) those within tol of its line."""
     if mask is None:
         return side[:0]
-    s = side[mask]
+    s: ScanXY = side[mask]
     if c is not None:
         s2 = side[np.abs(_signed_dist(side, phi, c)) < tol]
         if len(s2) >= 2:

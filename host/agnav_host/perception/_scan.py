@@ -95,7 +95,7 @@ def check_scan(scan: LaserScan, params: ScanParams | None = None) -> npt.NDArray
         raise ValueError(f"scan ranges must be one-dimensional, got shape {r.shape}")
     hi = min(p.max_range_m, scan.range_max_m)
     with np.errstate(invalid="ignore"):
-        keep = np.isfinite(r) & (r > 0.0) & (r >= p.min_range_m) & (r <= hi)
+        keep: npt.NDArray[np.bool_] = np.isfinite(r) & (r > 0.0) & (r >= p.min_range_m) & (r <= hi)
     if p.drop_mixed:
         keep &= ~mixed_pixel_mask(scan.angles_rad, np.where(keep, r, np.nan), p.mixed_jump_m)
     return keep

@@ -203,7 +203,8 @@ class _Standing:
         i = (ij[:, 0, None, None] + d[None, :, None]) % self.CELLS
         j = (ij[:, 1, None, None] + d[None, None, :]) % self.CELLS
         held = np.where(t - self.last[i, j] <= self.gap_s, t - self.first[i, j], 0.0)
-        return held.reshape(len(xy), -1).max(axis=1)
+        longest: FloatArray = held.reshape(len(xy), -1).max(axis=1)
+        return longest
 
 
 @dataclass(frozen=True)

@@ -22,11 +22,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..types import DriveCommand, FloatArray, Goal, Observation, ScanXY, norm_angle_rad
+
+if TYPE_CHECKING:
+    from ..perception._tracking import Track
 
 __all__ = [
     "Planner",
@@ -313,7 +316,7 @@ def _trig(a0: float, inc: float, n: int) -> tuple[FloatArray, FloatArray, FloatA
     key = (a0, inc, n)
     t = _TRIG_CACHE.get(key)
     if t is None:
-        a = a0 + inc * np.arange(n)
+        a = a0 + inc * np.arange(n, dtype=np.float64)
         t = (a, np.cos(a), np.sin(a))
         if len(_TRIG_CACHE) > 32:
             _TRIG_CACHE.clear()
@@ -407,7 +410,8 @@ def free_distances_m(points_xy: FloatArray, directions_rad: FloatArray, half_wid
     block = (lat < half_width_m) & (along > -half_width_m)
     dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
     dist = np.where(block, np.maximum(dist, 0.0), np.inf)
-    return np.minimum(out, dist.min(axis=1))
+    free: FloatArray = np.minimum(out, dist.min(axis=1))
+    return free
 
 
 def arc_blocked(x_m: float, y_m: float, yaw_rad: float, kappa_1_m: float, length_m: float, points_xy: FloatArray,
@@ -473,8 +477,8 @@ class MoverGuard:
 
         self.spec, self.horizon_s, self.margin_m = spec, horizon_s, margin_m
         self.tracker = ObstacleTracker(TrackerParams(max_coast_s=1.0, max_grow_m=0.15, max_shrink_m=0.15))
-        self.moving: list = []  # the tracker's moving tracks at the last update (perception Track)
-        self.walkers: list = []  # tracks that have moved, moving or not now (a walker turning round slows)
+        self.moving: list[Track] = []  # the tracker's moving tracks at the last update
+        self.walkers: list[Track] = []  # tracks that have moved, moving or not now (a walker turning round slows)
         self.stops = 0  # steps the robot stood for a moving track
 
     @property

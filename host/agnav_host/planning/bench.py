@@ -69,8 +69,9 @@ def _split(entry: str) -> tuple[str, dict[str, Any] | None]:
     return entry, None
 
 
-def run_case(job: tuple[str, str, int]) -> dict[str, Any]:
-    """Run one (scenario, planner entry, seed); returns the metrics and a thinned trajectory."""
+def run_case(job: tuple[str, str, int], planner_params: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Run one (scenario, planner entry, seed); returns the metrics and a thinned trajectory.
+    ``planner_params``: {planner: {parameter: value}} over the scenario's (the entry's own still win)."""
     from ..sim.metrics import menger_curvature, resample_path
     from ..sim.runner import run_scenario
     from ..sim.scenario import load_scenario
@@ -78,9 +79,13 @@ def run_case(job: tuple[str, str, int]) -> dict[str, Any]:
     scenario, entry, seed = job
     sc = load_scenario(scenario)
     name, params = _split(entry)
+    extra = {k: dict(v) for k, v in (planner_params or {}).items()}
     if params is not None:
-        table = dict(sc.meta.get("planner_params", {}))
-        table[name] = {**table.get(name, {}), **params}
+        extra[name] = {**extra.get(name, {}), **params}
+    if extra:
+        table = {k: dict(v) for k, v in sc.meta.get("planner_params", {}).items()}
+        for k, v in extra.items():
+            table[k] = {**table.get(k, {}), **v}
         sc = replace(sc, meta={**sc.meta, "planner_params": table})
     t0 = time.perf_counter()
     r = run_scenario(sc, name, seed)
@@ -114,10 +119,11 @@ def workers(processes: int | None, n_jobs: int) -> int:
 
 def run_suite(suite: Iterable[BenchCase] = SUITE, processes: int | None = None,
               progress: Callable[[int, int, dict[str, Any]], None] | None = None, backend: Any = None,
-              store: Any = None) -> list[dict[str, Any]]:
+              store: Any = None, sweep_progress: Callable[[Any], None] | None = None) -> list[dict[str, Any]]:
     """Run every job of ``suite`` as a sweep (:mod:`agnav_host.sweep`) on ``backend`` (default: :func:`workers`
     local processes), the rows kept in ``store`` (a :class:`~agnav_host.sweep.RunStore`; default: in memory,
-    so nothing resumes); results in job order."""
+    so nothing resumes); results in job order. ``progress(done, total, row)`` or ``sweep_progress(Progress)``
+    (with the rate and the time left) as each run ends."""
     from ..sweep import LocalBackend, RunStore, run_sweep
     from ..sweep.planners import results, tasks
 
@@ -127,7 +133,7 @@ def run_suite(suite: Iterable[BenchCase] = SUITE, processes: int | None = None,
                                                       tasks_[i].spec["planner"] != "subsumption"))
     store = store if store is not None else RunStore(None)
     backend = backend if backend is not None else LocalBackend(workers(processes, len(tasks_)))
-    show = None if progress is None else (lambda p: progress(p.done, p.total, p.row))
+    show = sweep_progress if progress is None else (lambda p: progress(p.done, p.total, p.row))
     rows = run_sweep(tasks_, backend, store, show, order)
     return results(rows, store)
 
@@ -207,7 +213,7 @@ def write_report(results: list[dict[str, Any]], out_dir: str | Path, command: st
                              f"{s['path_length_m']:.2f} | {s['bending_energy']:.3f} | {s['min_clearance_m']:.3f} | "
                              f"{s['stops']:.1f} | {s['step_median_ms']:.3f} |")
         lines.append("")
-    steps = {}
+    steps: dict[str, list[float]] = {}
     for r in results:
         steps.setdefault(r["planner"].split("@")[0], []).append(r["step_median_ms"])
     lines += ["## Compute time per step (median over runs of the per-run median, ms)", "", "| planner | median | worst run |", "|---|---|---|"]
@@ -235,7 +241,7 @@ def _plots(results: list[dict[str, Any]], out: Path) -> list[Path]:
     paths = []
     for sc_name in dict.fromkeys(r["scenario"] for r in results):
         rs = [r for r in results if r["scenario"] == sc_name]
-        first = {}
+        first: dict[str, dict[str, Any]] = {}
         for r in rs:  # the lowest seed of each planner
             if r["planner"] not in first or r["seed"] < first[r["planner"]]["seed"]:
                 first[r["planner"]] = r

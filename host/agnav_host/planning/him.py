@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..types import DriveCommand, FloatArray, Observation, norm_angle_rad
 from .base import LocalView, RobotSpec, drive_command, free_distances_m, goal_in_robot_frame, local_view
@@ -216,7 +217,7 @@ class HimPlanner:
         x += self.spec.footprint_offset_m
         return obs.pose.x_m + c * x - s * y, obs.pose.y_m + s * x + c * y
 
-    def _reachable(self, pts: FloatArray, targets: FloatArray, w_free: float, w_clear: float) -> FloatArray:
+    def _reachable(self, pts: FloatArray, targets: FloatArray, w_free: float, w_clear: float) -> npt.NDArray[np.bool_]:
         """True where the straight way to each target (t, 2) is free and the target has clearance."""
         d = np.hypot(targets[:, 0], targets[:, 1])
         # a return the body already grazes does not block moving off it (pressed against a wall tip,
@@ -225,7 +226,8 @@ class HimPlanner:
         if len(pts) == 0:
             return free >= d - 0.05
         clear = np.min(np.hypot(targets[:, None, 0] - pts[None, :, 0], targets[:, None, 1] - pts[None, :, 1]), axis=1)
-        return (free >= d - 0.05) & (clear >= w_clear)
+        reachable: npt.NDArray[np.bool_] = (free >= d - 0.05) & (clear >= w_clear)
+        return reachable
 
     def step(self, obs: Observation) -> DriveCommand:
         p, spec = self.params, self.spec
@@ -300,14 +302,14 @@ class HimPlanner:
                 return drive_command(spec, v, p.yaw_gain * a, view, obs)
             target = (cur[0], cur[1])
         bearing = math.atan2(target[1], target[0])
-        dist = math.hypot(*target)
+        target_m = math.hypot(*target)
         w = p.yaw_gain * bearing
         if abs(bearing) > p.turn_in_place_rad:
             return drive_command(spec, 0.0, w, view, obs)
         ahead, nose = (float(x) for x in free_distances_m(view.xy, np.array([bearing, 0.0]), r + 0.02, 1.5))
         v = spec.max_speed_m_s * math.cos(bearing) ** 2 * min(1.0, ahead / 1.0 + 0.2, d_goal / p.slow_radius_m + 0.2, nose / 0.3 + 0.1)
         if self.subgoal_world is not None:
-            v = min(v, spec.max_speed_m_s * max(0.4, min(1.0, dist / 0.8)))
+            v = min(v, spec.max_speed_m_s * max(0.4, min(1.0, target_m / 0.8)))
         return drive_command(spec, v, w, view, obs)
 
 
@@ -327,4 +329,5 @@ def departing_free_m(points_xy: FloatArray, directions_rad: FloatArray, half_wid
     lat = np.abs(px * uy - py * ux)
     dist = along - np.sqrt(np.maximum(half_width_m**2 - lat**2, 0.0))
     dist = np.where((lat < half_width_m) & (along > 0.0), np.maximum(dist, 0.0), np.inf)
-    return np.minimum(out, dist.min(axis=1))
+    free: FloatArray = np.minimum(out, dist.min(axis=1))
+    return free

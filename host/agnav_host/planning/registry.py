@@ -127,7 +127,10 @@ class FieldDescription:
     ``row_side``: the robot's side of the row it follows at ``row_offset_m`` (proximity; ``right`` = the row is on
     the robot's left); ``row_half_width_m``: from the row's centre line to the face the laser sees;
     ``row_method``: how crop rows are found in a scan (perception.row_method_names: ``ransac``, ``lsq``, ...);
-    ``first_turn`` / ``lanes_per_turn``: the headland turn pattern of the row navigator."""
+    ``pattern``: the row navigator's turns in the Field Robot Event's notation (``S-1L-2R-F``, see
+    :mod:`.row_navigator`); without one it turns ``lanes_per_turn`` lanes to ``first_turn`` and then to alternate
+    sides for good; ``row_spacing_m``: the rows' spacing; ``reverse``: the row navigator may back up on the
+    headland (False: omega turns where the lanes are closer than two turning radii)."""
 
     row_side: str = "right"
     row_offset_m: float = 1.0
@@ -135,6 +138,9 @@ class FieldDescription:
     row_method: str = "ransac"
     first_turn: str = "left"
     lanes_per_turn: int = 1
+    pattern: str = ""
+    row_spacing_m: float = 0.75
+    reverse: bool = True
 
     def problem(self) -> str:
         """Why this description cannot be used ("" when it can)."""
@@ -151,6 +157,16 @@ class FieldDescription:
             return f"row method must be one of {', '.join(row_method_names())}, got {self.row_method!r}"
         if self.first_turn not in ROW_SIDES or not 1 <= self.lanes_per_turn <= 20:
             return f"turn pattern must be left or right and 1-20 lanes, got {self.first_turn!r}, {self.lanes_per_turn!r}"
+        if self.pattern:
+            from .row_navigator import PatternError, parse_pattern
+
+            try:
+                parse_pattern(self.pattern)
+            except PatternError as e:
+                return str(e)
+        if not (isinstance(self.row_spacing_m, (int, float)) and math.isfinite(self.row_spacing_m)
+                and 0.2 <= self.row_spacing_m <= 10.0):
+            return f"row spacing must be a number 0.2-10 m, got {self.row_spacing_m!r}"
         return ""
 
 
@@ -184,8 +200,9 @@ CONTROLLERS: dict[str, ControllerEntry] = {
     **{n: ControllerEntry("planner", e.summary, e.sensors) for n, e in PLANNERS.items()},
     "row-follower": ControllerEntry("field", "centre line between two crop rows from the laser (row method; refs 004/000)",
                                     ("laser",)),
-    "row-navigator": ControllerEntry("field", "whole rows: follow, find the row's end, headland turn into the next "
-                                              "lane by the turn pattern (ref 000)", ("laser",)),
+    "row-navigator": ControllerEntry("field", "a whole field: follow a lane, find the rows' end, count the rows on "
+                                              "the headland, turn into the lane the pattern names (S-1L-2R-F), stop "
+                                              "at F (ref 000; the Field Robot Event)", ("laser",)),
     "proximity": ControllerEntry("field", "one row at the row offset, the robot on the row side of it (ref 000)", ("laser",)),
     "rut-follower": ControllerEntry("field", "the ruts' midline from the tilted laser (ref 000)", ("tilted_laser",)),
 }
@@ -247,8 +264,6 @@ def _field_controller(base: str, ctx: ControllerContext, label: str) -> "Control
         ProximityFollowerParams,
         RowFollower,
         RowFollowerParams,
-        RowNavigator,
-        RowNavigatorParams,
         RutFollower,
         RutFollowerParams,
     )
@@ -267,11 +282,37 @@ def _field_controller(base: str, ctx: ControllerContext, label: str) -> "Control
                                      mount=mount)
         if base == "row-follower":
             return RowFollower(follower)
-        return RowNavigator(RowNavigatorParams(follower=follower, first_turn=f.first_turn, lanes_per_turn=f.lanes_per_turn))
+        return _row_navigator(spec, f, follower)
     return ProximityFollower(ProximityFollowerParams(
         side="left" if f.row_side == "right" else "right",  # the row is on the robot's other side
         distance_m=float(f.row_offset_m), row_half_width_m=float(f.row_half_width_m),
         speed_m_s=min(0.5, spec.max_speed_m_s), limits=limits, mount=mount))
+
+
+def _row_navigator(spec: RobotSpec, f: FieldDescription, follower: Any) -> "Controller":
+    """The row navigator for ``spec`` on field ``f``: its turns from the pattern (or the first side and lane count,
+    for good); a differential drive turns no tighter than its track (the firmware's 45 deg steering limit turns it
+    like a car of wheelbase = track); a car that cannot crawl (a speed table with a least speed) never reverses."""
+    from dataclasses import replace
+
+    from ..perception import DriveLimits, RowParams
+    from .row_navigator import RowNavigator, RowNavigatorParams, Turn, parse_pattern
+
+    limits = follower.limits
+    if spec.kinematics == "diff_drive":
+        limits = DriveLimits(kinematics="diff_drive", max_yaw_rate_rad_s=spec.max_yaw_rate_rad_s,
+                             min_turn_radius_m=max(0.3, spec.track_m))
+    rows = replace(RowParams(), expected_spacing_m=float(f.row_spacing_m))
+    speed = max(follower.speed_m_s, 1.05 * spec.min_speed_m_s)  # a car's least speed (its speed table's first step)
+    # in a field of gaps and weeds: a detection far off the lane it is in, or of the wrong spacing, counts little
+    follower = replace(follower, limits=limits, rows=rows, speed_m_s=speed, gate_m=0.05, gate_rad=math.radians(5.0),
+                       gate_spacing=0.15)
+    turns = parse_pattern(f.pattern) if f.pattern else (Turn(f.first_turn, f.lanes_per_turn),)
+    return RowNavigator(RowNavigatorParams(
+        follower=follower, pattern=turns, finish=bool(f.pattern), row_spacing_m=float(f.row_spacing_m),
+        radius_m=spec.radius_m, footprint_offset_m=spec.footprint_offset_m,
+        reverse=f.reverse and not (spec.kinematics == "ackermann" and spec.min_speed_m_s > 0.0),
+        min_speed_m_s=1.05 * spec.min_speed_m_s))
 
 
 def _standin_params(spec: RobotSpec) -> "GoalSeekParams":
@@ -346,5 +387,5 @@ def make_planner(name: str, spec: RobotSpec | None = None, params: Any = None) -
     if horizon > 0.0:
         from .base import WithMoverGuard
 
-        planner = WithMoverGuard(planner, float(horizon))  # type: ignore[assignment]
+        planner = WithMoverGuard(planner, float(horizon))
     return planner

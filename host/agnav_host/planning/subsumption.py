@@ -149,7 +149,7 @@ class SubsumptionPlanner:
     def __init__(self, spec: RobotSpec, params: SubsumptionParams | None = None) -> None:
         self.spec = spec
         self.params = p = params or SubsumptionParams()
-        b = norm_angle_rad(spec.sonar_spacing_rad * np.arange(spec.sonar_count))
+        b = norm_angle_rad(spec.sonar_spacing_rad * np.arange(spec.sonar_count, dtype=np.float64))
         self.bearing = b
         self.cos = np.where(np.cos(b) > 0, np.cos(b), 0.0)
         ab = np.abs(b)
@@ -193,12 +193,12 @@ class SubsumptionPlanner:
         p = self.params
         side_clear = not bool(np.any(((self.cls & _FRONT_SIDE) != 0) & valid & (rng < self.engage_m)))
         term = self.cos / (rng + p.wall_r0_m)
-        l = float(term[(self.cls & _LEFT) != 0].sum())
-        r = float(term[(self.cls & _RIGHT) != 0].sum())
-        f = float(term[((self.cls & _AXIS) != 0) & (self.cos > 0)].sum())
-        self.wall_l, self.wall_r = l, r
-        blocked = f >= self.imin
-        if l < self.imin and r < self.imin and not blocked:
+        i_left = float(term[(self.cls & _LEFT) != 0].sum())
+        i_right = float(term[(self.cls & _RIGHT) != 0].sum())
+        i_front = float(term[((self.cls & _AXIS) != 0) & (self.cos > 0)].sum())
+        self.wall_l, self.wall_r = i_left, i_right
+        blocked = i_front >= self.imin
+        if i_left < self.imin and i_right < self.imin and not blocked:
             return None
         # ... but not while a side sensor on the goal's side is closer than avoid_stop (as the firmware):
         # move-to-goal would turn into what stands there (a post 3 cm off the left at 60 deg was swept)
@@ -213,15 +213,15 @@ class SubsumptionPlanner:
             # host only: front open, goal near the nose, no canyon timer running and the front-side
             # sensors clear of half the engage horizon: a wall alongside does not hold the layer
             return None
-        e = max(l, r, f)
+        e = max(i_left, i_right, i_front)
         if e >= self.imax:
             speed = 0.0
         elif e <= self.imin:
             speed = p.wall_speed_m_s
         else:
             speed = p.wall_speed_m_s * (self.imax - e) / (self.imax - self.imin)
-        diff = l - r
-        reason = Reason.WALL_LEFT if l >= r else Reason.WALL_RIGHT
+        diff = i_left - i_right
+        reason = Reason.WALL_LEFT if i_left >= i_right else Reason.WALL_RIGHT
         timers = p.wall_canyon_s > 0
         if blocked:
             # firmware: away from the nearer side, ties to wall_tie_dir
@@ -229,7 +229,7 @@ class SubsumptionPlanner:
             # host extension (wall_goal_side_rad > 0): towards the goal's side when the goal is off the
             # nose and that side is not already inside the Imax horizon
             d_goal = 0
-            if p.wall_goal_side_rad > 0 and abs(err) > p.wall_goal_side_rad and (l if err > 0 else r) < self.imax:
+            if p.wall_goal_side_rad > 0 and abs(err) > p.wall_goal_side_rad and (i_left if err > 0 else i_right) < self.imax:
                 d_goal = 1 if err > 0 else -1
             d = d_goal or d_wall or (1 if p.wall_tie_dir >= 0 else -1)
             # both cues agree: a new situation, not the sway of a canyon; the held direction is dropped

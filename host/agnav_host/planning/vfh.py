@@ -108,7 +108,10 @@ def _ang_dist(a: float, b: float) -> float:
 def choose_direction(valleys: list[tuple[int, int]], n: int, goal_rad: float, prev_rad: float, p: VfhParams) -> float | None:
     """The VFH+ steering direction (rad, robot frame) among the valleys; None when there is none."""
     width = 2.0 * math.pi / n
-    centre = lambda k: -math.pi + width * (k % n + 0.5)  # noqa: E731
+
+    def centre(k: float) -> float:
+        return -math.pi + width * (k % n + 0.5)
+
     cands: list[float] = []
     for s, L in valleys:
         if L == n:

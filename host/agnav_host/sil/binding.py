@@ -139,6 +139,7 @@ class Firmware:
         if backend not in BACKENDS:
             raise ValueError(f"unknown SIL backend {backend!r}; known: {', '.join(BACKENDS)}")
         self.backend = backend
+        self.elf: Path | None = None
         if backend == "avr":
             from .avr_build import build_avr_elf, build_avr_library
 
@@ -148,7 +149,6 @@ class Firmware:
                 raise FileNotFoundError(f"AVR firmware ELF not found: {self.elf}")
         else:
             src = Path(lib_path) if lib_path is not None else build_library()
-            self.elf = None
         fd, tmp = tempfile.mkstemp(prefix="agnav_sil_", suffix=".so")
         os.close(fd)
         try:
@@ -187,7 +187,7 @@ class Firmware:
 
     # ---- life cycle -----------------------------------------------------------------------------
     def close(self) -> None:
-        lib, self._lib = getattr(self, "_lib", None), None
+        lib = vars(self).pop("_lib", None)  # a closed Firmware has no library left to call
         if lib is not None:
             import _ctypes
 

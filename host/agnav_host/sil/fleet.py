@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..sim.scenario import Scenario
+from ..sim.world import Mover
 from ..types import Goal, Pose2D, norm_angle_rad
 from .session import PlannerHost, SilConfig, SilSession
 
@@ -127,7 +128,9 @@ class Fleet:
         try:
             for i, task in enumerate(tasks):
                 others = [_Body(self, j, radius) for j in range(len(tasks)) if j != i]
-                w = replace(sc.world, movers=list(sc.world.movers) + others)  # type: ignore[arg-type]
+                # a _Body stands in for a Mover: the world only asks a mover for position() and radius_m
+                movers: list[Mover] = [*sc.world.movers, *others]  # type: ignore[list-item]
+                w = replace(sc.world, movers=movers)
                 sci = replace(sc, name=f"{sc.name}:{task.name}", world=w, start=task.start, goals=[task.goal])
                 host = PlannerHost(sci, "timed")
                 host.observation_extras = self._peer_extras(i)
@@ -219,7 +222,8 @@ def run_fleet(sc: Scenario, seed: int = 0, *, tasks: list[FleetTask] | None = No
                     rest_since[i] = t if rest_since[i] is None else rest_since[i]
                 else:
                     rest_since[i] = None
-                done &= rest_since[i] is not None and t - rest_since[i] > 1.0  # type: ignore[operator]
+                since = rest_since[i]
+                done &= since is not None and t - since > 1.0
             if hit:
                 collisions += 1
                 break
@@ -229,10 +233,11 @@ def run_fleet(sc: Scenario, seed: int = 0, *, tasks: list[FleetTask] | None = No
         for i, (task, s, pl) in enumerate(zip(tasks, f.sessions, f.planners)):
             p, g = s.pose, task.goal
             a = arrival[i]
+            at_T = pos_T[i]
             out.append(RobotOutcome(task.name, a is not None, None if a is None else a - (g.arrival_s or 0.0),
                                     math.hypot(g.x_m - p.x_m, g.y_m - p.y_m),
                                     math.degrees(abs(norm_angle_rad(p.yaw_rad - (g.yaw_rad or 0.0)))),
-                                    math.nan if pos_T[i] is None else pos_T[i], min_cl[i], loc_err[i],
+                                    math.nan if at_T is None else at_T, min_cl[i], loc_err[i],
                                     int(pl.status["replans"]), list(pl.events), list(pl.replan_times_s), list(pl.replan_cpu_s)))
         c = f.coordination
         return FleetResult(seed, out, collisions, min_gap, len(c.before), len(c.after), dict(c.actions))

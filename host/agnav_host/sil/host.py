@@ -93,7 +93,7 @@ class HostEndpoint:
         d = self._d
         self._send(d.MAVLink_heartbeat_message(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0, d.MAV_STATE_ACTIVE, 3))
 
-    def setpoint(self, steer_cdeg: int, speed_mm_s: int) -> None:
+    def setpoint(self, steer_cdeg: float, speed_mm_s: float) -> None:
         d = self._d
         self._seq = (self._seq + 1) & 0xFFFF
         s = max(-32767, min(32767, int(round(steer_cdeg))))

@@ -66,9 +66,9 @@ class LinkFaults:
         for w in self.outages:
             if len(w) != 2 or not w[0] < w[1]:
                 raise ValueError(f"outage window must be (start_s, end_s) with start < end, got {w!r}")
-        for w in self.latency_spikes:
-            if len(w) != 3 or not w[0] < w[1] or w[2] < 0:
-                raise ValueError(f"latency spike must be (start_s, end_s, extra_s >= 0), got {w!r}")
+        for spike in self.latency_spikes:
+            if len(spike) != 3 or not spike[0] < spike[1] or spike[2] < 0:
+                raise ValueError(f"latency spike must be (start_s, end_s, extra_s >= 0), got {spike!r}")
 
     def lost_at(self, t_us: int) -> bool:
         t = t_us * 1e-6

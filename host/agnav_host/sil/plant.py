@@ -21,6 +21,7 @@ from __future__ import annotations
 import ctypes as C
 import math
 from dataclasses import dataclass
+from typing import Callable, Sequence, cast
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from ..sim.scenario import Scenario
 from ..sim._raycast import RayBundle
 from ..sim.sensors import EncoderSpec, SonarRing, WheelEncoder
 from ..sim.world import World
-from ..types import DriveCommand, Pose2D, norm_angle_rad
+from ..types import DriveCommand, FloatArray, Pose2D, norm_angle_rad
 from ..units import si_to_milli
 from ._kernels import kernels
 from .binding import Firmware, Outputs
@@ -131,7 +132,8 @@ class FastSonarRing(SonarRing):
         np.sin(allang, out=sn)
         return cs, sn, n
 
-    def exact_ranges(self, world: World, pose: Pose2D, t_s: float = 0.0, indices: np.ndarray | None = None) -> np.ndarray:
+    def exact_ranges(self, world: World, pose: Pose2D, t_s: float = 0.0,
+                     indices: Sequence[int] | np.ndarray | None = None) -> FloatArray:
         s = self.spec
         if indices is None:
             key = tuple(range(s.count))
@@ -149,8 +151,10 @@ class FastSonarRing(SonarRing):
         if kern is None:
             R, nk = s.mount_radius_m, n * k
             ox, oy = pose.x_m + R * cs[nk:], pose.y_m + R * sn[nk:]
-            return self._bundle_for(world).cast(ox[:, None], oy[:, None], cs[:nk].reshape(n, k), sn[:nk].reshape(n, k),
-                                                movers, centre=(pose.x_m, pose.y_m)).min(axis=1)
+            nearest: FloatArray = self._bundle_for(world).cast(ox[:, None], oy[:, None], cs[:nk].reshape(n, k),
+                                                               sn[:nk].reshape(n, k), movers,
+                                                               centre=(pose.x_m, pose.y_m)).min(axis=1)
+            return nearest
         w = self._world
         if w is None or w[0] is not world.segments or w[1] is not world.circles:
             seg = np.ascontiguousarray(world.segments, dtype=float).reshape(-1, 4)
@@ -187,16 +191,15 @@ class Plant:
         self.sonar = (FastSonarRing(sc.sonar.spec) if sc.sonar is not None and sc.sonar.spec.count in FIRMWARE_SONAR_PRESETS
                       else None)
         self.diff = isinstance(self.robot, DiffDrive)
-        if self.diff:
-            p = self.robot.params
+        if isinstance(self.robot, DiffDrive):
             self.encoders = [WheelEncoder(EncoderSpec("quadrature", self.cfg.quad_lines)) for _ in range(2)]
-            self.true_left = self.true_right = hbridge_table(p.max_wheel_speed_m_s)
+            self.true_left = self.true_right = hbridge_table(self.robot.params.max_wheel_speed_m_s)
         else:
             assert isinstance(self.robot, Ackermann)
-            p = self.robot.params
+            car = self.robot.params
             self.encoders = [WheelEncoder(EncoderSpec.hall16())]
-            self.true_steer = p.true_steer or default_steering_table()
-            self.true_speed = p.true_speed or default_speed_table()
+            self.true_steer = car.true_steer or default_steering_table()
+            self.true_speed = car.true_speed or default_speed_table()
         self._angles = self._wheel_angles()
         self._pose0 = self._pose1 = self.robot.pose
         self._t0_us = self._t1_us = 0
@@ -210,7 +213,7 @@ class Plant:
         self._edge_ab = (C.c_uint8 * _EDGE_BATCH)()
         self._capi_fw: object = None
         self._q_edges = self._q_echo = None
-        self._k_edges = None
+        self._k_edges: Callable[..., int] | None = None  # the C kernel's agnav_encoder_edges, when built
         self.edges_queued = 0
         self.echoes = 0
 
@@ -218,7 +221,7 @@ class Plant:
     def firmware_params(self) -> dict[str, int]:
         """Parameters to store in the firmware's EEPROM before boot so it matches this robot."""
         out: dict[str, int] = {"SONAR_COUNT": self.sonar.spec.count if self.sonar is not None else 0}
-        if self.diff:
+        if isinstance(self.robot, DiffDrive):
             p = self.robot.params
             nm = 2.0 * math.pi * p.wheel_radius_m / self.encoders[0].spec.edges_per_rev * 1e9
             # MAX_STEER_CDEG 4500: the tightest arc the steering interface allows a differential
@@ -226,11 +229,11 @@ class Plant:
             out.update(DRIVE_KIND=1, ENC_COUNT=2, ENC_MODE=0, ENC_NM_PER_CNT=int(round(nm)),
                        TRACK_MM=int(round(si_to_milli(p.track_m))), MAX_STEER_CDEG=4500)
         else:
-            p = self.robot.params
-            nm = 2.0 * math.pi * p.wheel_radius_m / self.encoders[0].spec.counts_per_rev * 1e9
+            car = self.robot.params
+            nm = 2.0 * math.pi * car.wheel_radius_m / self.encoders[0].spec.counts_per_rev * 1e9
             out.update(DRIVE_KIND=0, ENC_COUNT=1, ENC_MODE=1, ENC_NM_PER_CNT=int(round(nm)),
-                       TRACK_MM=int(round(si_to_milli(p.track_m))),
-                       WHEELBASE_MM=int(round(si_to_milli(p.wheelbase_m))))
+                       TRACK_MM=int(round(si_to_milli(car.track_m))),
+                       WHEELBASE_MM=int(round(si_to_milli(car.wheelbase_m))))
         return out
 
     def calibration_uploads(self) -> list[tuple[int, list[int], list[int], int]]:
@@ -278,9 +281,10 @@ class Plant:
         self._pose0 = robot.pose
         if self.diff:
             vl, vr = self._target
-            robot.step(DriveCommand(0.5 * (vl + vr), (vr - vl) / robot.params.track_m), dt_s, self._robot_rng)  # type: ignore[arg-type]
+            diff = cast(DiffDrive, robot)
+            diff.step(DriveCommand(0.5 * (vl + vr), (vr - vl) / diff.params.track_m), dt_s, self._robot_rng)
         else:
-            robot._advance(self._target[0], self._target[1], dt_s, self._robot_rng)  # type: ignore[arg-type]
+            cast(Ackermann, robot)._advance(self._target[0], self._target[1], dt_s, self._robot_rng)
         self._pose1 = robot.pose
         self._t0_us, self._t1_us = t0_us, t1_us
         a1 = self._wheel_angles()

@@ -331,16 +331,16 @@ def serve(sc: Scenario, opt: ServeOptions, log: Callable[[str], None] = lambda m
                 rd = [x for x in (client, master) if x is not None]
                 if rd:
                     ready_r, _, _ = select.select(rd, [], [], 0)
-                    for x in ready_r:
+                    for src in ready_r:
                         try:
-                            data = x.recv(4096) if isinstance(x, socket.socket) else os.read(x, 4096)
+                            data = src.recv(4096) if isinstance(src, socket.socket) else os.read(src, 4096)
                         except (BlockingIOError, InterruptedError):
                             continue
                         except OSError as e:
-                            if x is client:
+                            if src is client:
                                 drop_client(f"disconnected ({e.strerror or e})")
                             continue
-                        if x is client and data == b"":
+                        if src is client and data == b"":
                             drop_client("disconnected")
                         elif data:
                             s.up.send(s.t_us, data)

@@ -10,6 +10,7 @@ until the firmware's final answer."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 from ..protocol import dialect
 from .binding import Firmware
@@ -32,7 +33,7 @@ class SaveTiming:
     answers: tuple[int, ...]  # results in order (IN_PROGRESS first for parameters and tables)
 
 
-def _exchange(fw: Firmware, h: HostEndpoint, us: int, until=None) -> None:  # noqa: ANN001
+def _exchange(fw: Firmware, h: HostEndpoint, us: int, until: Callable[[], bool] | None = None) -> None:
     end = fw.time_us + us
     while fw.time_us < end:
         h.heartbeat()
@@ -66,6 +67,7 @@ def save_timing(record: str, backend: str = "avr", timeout_s: float = 8.0) -> Sa
         t0 = fw.time_us
         h.acks.clear()
         h.calib_acks.clear()
+        final: Callable[[], bool]
         if record == "params":
             h.param_set("LINK_TIMEOUT_MS", 1234)
             h.command_long(D.MAV_CMD_PREFLIGHT_STORAGE, 1)

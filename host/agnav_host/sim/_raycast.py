@@ -14,15 +14,18 @@ Objects farther than the maximum range are dropped first. The nearest hit per be
 from __future__ import annotations
 
 import math
+from typing import TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from ..types import Circles, FloatArray, Segments, norm_angle_rad
 
 TWO_PI = 2.0 * math.pi
+IndexArray: TypeAlias = npt.NDArray[np.int64]
 
 
-def _beam_pairs(start_rel: FloatArray, width: FloatArray, rel: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _beam_pairs(start_rel: FloatArray, width: FloatArray, rel: FloatArray) -> tuple[IndexArray, IndexArray]:
     """Beam indices covered by angular intervals.
 
     ``start_rel`` (k,) interval starts relative to the scan's centre direction, in [-pi, pi);
@@ -70,7 +73,7 @@ def cast_rays(
     Returns (n_beams,) ranges in m; ``inf`` where nothing is hit within ``max_range_m``.
     Requires ``(n_beams - 1) * angle_inc_rad < 2*pi``.
     """
-    angles = angle_min_rad + angle_inc_rad * np.arange(n_beams)
+    angles = angle_min_rad + angle_inc_rad * np.arange(n_beams, dtype=np.float64)
     return cast_rays_at(origin_x, origin_y, heading_rad, angles, max_range_m, segments, circles)
 
 
@@ -240,7 +243,7 @@ class RayBundle:
             px, py, ex, ey, circ = self._px, self._py, self._ex, self._ey, self._circ
         if extra_circles is not None and len(extra_circles):
             circ = np.vstack((circ, extra_circles)) if len(circ) else np.asarray(extra_circles, dtype=float)
-        best = None
+        best: FloatArray | None = None
         oxc, oyc = ox[..., None], oy[..., None]
         dxc, dyc = dx[..., None], dy[..., None]
         if px.shape[1]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from dataclasses import field as dc_field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,9 +34,11 @@ __all__ = [
     "signed_offset_m",
     "RowDistance",
     "row_distance",
+    "PLANTED_WINDOW_M",
     "along_and_offset_m",
     "disc_clearance_to_hole_m",
     "SUMMARY_KEYS",
+    "FIELD_SUMMARY_KEYS",
     "path_length_m",
     "bending_energy",
     "count_reversals",
@@ -58,7 +61,17 @@ SUMMARY_KEYS = (
     "final_position_error_m",
     "final_heading_error_deg",
     "arrival_time_error_s",
+    "rows_completed",
+    "pattern_completed",
+    "plants_touched",
+    "field_distance_m",
+    "field_time_s",
+    "field_score_m",
 )
+#: The whole-field keys of SUMMARY_KEYS (a scenario with a ``[field]``; None elsewhere): the lanes driven in the
+#: pattern's order, whether the pattern was finished, the stems run over, and the Field Robot Event's distance in
+#: rows, time and score (sim.field_gen)
+FIELD_SUMMARY_KEYS = SUMMARY_KEYS[-6:]
 
 
 CUSP_TURN_DEG = 150.0  # consecutive chords turning by more than this: a reversal (cusp), deg
@@ -209,6 +222,14 @@ class RunMetrics:
     final_position_error_m: float
     final_heading_error_deg: float | None
     arrival_time_error_s: float | None
+    rows_completed: int | None = None
+    pattern_completed: bool | None = None
+    plants_touched: int | None = None
+    field_distance_m: float | None = None
+    field_time_s: float | None = None
+    field_score_m: float | None = None
+    # the whole FieldScore behind the field keys (lanes, times; field.json), None off a field; not in summary.json
+    field_detail: Any = dc_field(default=None, repr=False, compare=False)
 
     @staticmethod
     def compute(
@@ -223,9 +244,11 @@ class RunMetrics:
         goal_arrival_s: float | None,
         success: bool,
         arrival_s: float | None,
+        field: Any = None,
     ) -> "RunMetrics":
         """Metrics of a recorded run (arrays indexed by sample). ``arrival_s`` is when the final goal was
-        reached (None if never); ``time_s`` is that time, or the run's end when not reached."""
+        reached (None if never); ``time_s`` is that time, or the run's end when not reached. ``field``: the run's
+        :class:`~agnav_host.sim.field_gen.FieldScore` (the referee's ``field_score()``), None off a field."""
         xy = np.asarray(xy, dtype=float)
         end = xy[-1]
         fpe = math.hypot(end[0] - goal_xy[0], end[1] - goal_xy[1])
@@ -245,6 +268,8 @@ class RunMetrics:
             final_position_error_m=fpe,
             final_heading_error_deg=fhe,
             arrival_time_error_s=ate,
+            **(field.summary() if field is not None else {}),
+            field_detail=field,
         )
 
     def to_dict(self, ndigits: int = 6) -> dict[str, Any]:
@@ -282,7 +307,11 @@ def along_and_offset_m(px: FloatArray, py: FloatArray, line: FloatArray) -> tupl
 class RowDistance:
     """How far a run kept from the nearest plant row's design line (proximity following), m: every sample once
     the robot has driven ``settle_m``; ``within`` is the share of those samples within ``band_m`` of ``set_m``.
-    ``travel_m`` and ``distance_m`` are the samples themselves (for a plot)."""
+    ``travel_m`` and ``distance_m`` are the samples themselves (for a plot).
+
+    ``planted_m``: the same samples measured against the row *as planted* (None without the plants' stems): at
+    each sample's foot on the design line, the row runs where the stems (each plant's centre) within
+    ``planted_window_m`` / 2 along the line stand on average, across it; the distance is taken from there."""
 
     set_m: float
     band_m: float
@@ -294,36 +323,87 @@ class RowDistance:
     within: float
     travel_m: FloatArray
     distance_m: FloatArray
+    planted_m: FloatArray | None = None
+    planted_window_m: float = 0.0
+
+    def planted(self) -> dict[str, float] | None:
+        """Mean, sd, min, max and the share within the band of the distances to the row as planted (None without)."""
+        d = self.planted_m
+        if d is None or not len(d):
+            return None
+        return {"window_m": self.planted_window_m, "mean_m": float(d.mean()), "sd_m": float(d.std()),
+                "min_m": float(d.min()), "max_m": float(d.max()),
+                "within_band": float(np.mean(np.abs(d - self.set_m) <= self.band_m))}
 
     def to_dict(self, ndigits: int = 4) -> dict[str, Any]:
-        return {"set_m": self.set_m, "band_m": self.band_m, "settle_m": self.settle_m, "samples": int(len(self.distance_m)),
-                "mean_m": round(self.mean_m, ndigits), "sd_m": round(self.sd_m, ndigits), "min_m": round(self.min_m, ndigits),
-                "max_m": round(self.max_m, ndigits), "within_band": round(self.within, ndigits)}
+        out: dict[str, Any] = {
+            "set_m": self.set_m, "band_m": self.band_m, "settle_m": self.settle_m, "samples": int(len(self.distance_m)),
+            "mean_m": round(self.mean_m, ndigits), "sd_m": round(self.sd_m, ndigits), "min_m": round(self.min_m, ndigits),
+            "max_m": round(self.max_m, ndigits), "within_band": round(self.within, ndigits)}
+        pl = self.planted()
+        if pl is not None:
+            out["planted"] = {k: round(v, ndigits) for k, v in pl.items()}
+        return out
 
 
 ROW_SETTLE_M = 2.0  # row_distance: the travel (m) left out at the start, while the follower settles
+PLANTED_WINDOW_M = 3.0  # row_distance: the row as planted is the stems' mean over this length of row
 
 
 def row_distance(px: FloatArray, py: FloatArray, lines: list[FloatArray], set_m: float, settle_m: float = ROW_SETTLE_M,
-                 band_m: float = 0.05) -> RowDistance | None:
+                 band_m: float = 0.05, plants: list[FloatArray] | None = None,
+                 planted_window_m: float = PLANTED_WINDOW_M) -> RowDistance | None:
     """:class:`RowDistance` of a driven path (px, py) against the row design lines ``lines`` (each (k, 2)):
-    at each sample the distance to the nearest line. None when there is no line or the robot never drove
-    ``settle_m``."""
+    at each sample the distance to the nearest line; with ``plants`` (each line's stems (k, 2), as
+    ``World.row_plants``) also the distance to the row as planted. None when there is no line or the robot never
+    drove ``settle_m``."""
     px, py = np.asarray(px, dtype=float), np.asarray(py, dtype=float)
     if not lines or len(px) < 2:
         return None
     d = np.full(len(px), np.inf)
-    for ln in (np.asarray(ln, dtype=float) for ln in lines):
+    near = np.zeros(len(px), dtype=int)
+    s_near = np.zeros(len(px))
+    n_near = np.zeros(len(px))
+    for j, ln in enumerate(np.asarray(ln, dtype=float) for ln in lines):
         for i in range(0, len(px), 2000):  # in pieces: a (samples x segments) array per piece, not per run
             part = slice(i, i + 2000)
-            d[part] = np.minimum(d[part], np.abs(along_and_offset_m(px[part], py[part], ln)[1]))
+            s, n = along_and_offset_m(px[part], py[part], ln)
+            closer = np.abs(n) < d[part]
+            d[part] = np.where(closer, np.abs(n), d[part])
+            near[part] = np.where(closer, j, near[part])
+            s_near[part] = np.where(closer, s, s_near[part])
+            n_near[part] = np.where(closer, n, n_near[part])
     travel = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(px), np.diff(py)))))
     keep = travel >= settle_m
     if not keep.any():
         return None
     dk = d[keep]
+    planted = None
+    if plants is not None and len(plants) == len(lines):
+        planted = np.abs(n_near - _planted_offset_m(s_near, near, lines, plants, planted_window_m))[keep]
     return RowDistance(float(set_m), float(band_m), float(settle_m), float(dk.mean()), float(dk.std()), float(dk.min()),
-                       float(dk.max()), float(np.mean(np.abs(dk - set_m) <= band_m)), travel[keep], dk)
+                       float(dk.max()), float(np.mean(np.abs(dk - set_m) <= band_m)), travel[keep], dk, planted,
+                       float(planted_window_m) if planted is not None else 0.0)
+
+
+def _planted_offset_m(s: FloatArray, line_of: np.ndarray, lines: list[FloatArray], plants: list[FloatArray],
+                      window_m: float) -> FloatArray:
+    """Where the row as planted runs, as an offset (m, left of the design line) at arc lengths ``s`` along line
+    ``line_of[i]``: the mean offset of that row's stems within +-window/2 along it (0 where none is)."""
+    out = np.zeros(len(s))
+    for j, (ln, st) in enumerate(zip(lines, plants)):
+        m = line_of == j
+        st = np.asarray(st, dtype=float).reshape(-1, 2)
+        if not m.any() or not len(st):
+            continue
+        sb, nb = along_and_offset_m(st[:, 0], st[:, 1], np.asarray(ln, dtype=float))
+        order = np.argsort(sb)
+        sb, cum = sb[order], np.concatenate(([0.0], np.cumsum(nb[order])))
+        lo = np.searchsorted(sb, s[m] - 0.5 * window_m, side="left")
+        hi = np.searchsorted(sb, s[m] + 0.5 * window_m, side="right")
+        cnt = hi - lo
+        out[m] = np.where(cnt > 0, (cum[hi] - cum[lo]) / np.maximum(cnt, 1), 0.0)
+    return out
 
 
 def disc_clearance_to_hole_m(px: FloatArray, py: FloatArray, radius_m: float, hole: Hole, grid_m: float = 0.02) -> float:

@@ -19,13 +19,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..calib import CalibTable
 from ..types import DriveCommand, Pose2D, PwmCommand, norm_angle_rad
 
-__all__ = ["DiffDriveParams", "DiffDrive", "AckermannParams", "Ackermann", "integrate_arc", "Robot"]
+__all__ = ["DiffDriveParams", "DiffDrive", "AckermannParams", "Ackermann", "integrate_arc", "Robot", "SlipNoise"]
+
+
+class SlipNoise(Protocol):
+    """The random source of the wheel slip: ``normal(0, slip_std, 2)`` gives two draws (a numpy Generator,
+    or anything that serves the same normals)."""
+
+    def normal(self, loc: float, scale: float, size: int) -> Any: ...
 
 
 def integrate_arc(x: float, y: float, yaw: float, v: float, w: float, dt: float) -> tuple[float, float, float]:
@@ -112,7 +120,7 @@ class DiffDrive:
         vr = 0.0 if abs(vr) < p.deadband_m_s else vr
         return vl, vr
 
-    def step(self, cmd: DriveCommand, dt_s: float, rng: np.random.Generator | None = None) -> None:
+    def step(self, cmd: DriveCommand, dt_s: float, rng: SlipNoise | None = None) -> None:
         """Advance dt_s seconds under a physical command (speed + yaw rate; steer_rad is ignored)."""
         p = self.params
         tl, tr = self.wheel_targets(cmd)
@@ -223,12 +231,12 @@ class Ackermann:
         speed = float(p.true_speed.value_from_pwm(pwm.speed_pwm))
         return steer, speed
 
-    def step(self, cmd: DriveCommand | PwmCommand, dt_s: float, rng: np.random.Generator | None = None) -> None:
+    def step(self, cmd: DriveCommand | PwmCommand, dt_s: float, rng: SlipNoise | None = None) -> None:
         """Advance dt_s under a physical command or raw PWM."""
         target = self.pwm_targets(cmd) if isinstance(cmd, PwmCommand) else self.physical_targets(cmd)
         self._advance(target[0], target[1], dt_s, rng)
 
-    def _advance(self, steer_t: float, speed_t: float, dt_s: float, rng: np.random.Generator | None) -> None:
+    def _advance(self, steer_t: float, speed_t: float, dt_s: float, rng: SlipNoise | None) -> None:
         p = self.params
         self.steer_rad = _lag(self.steer_rad, steer_t, dt_s, p.steer_tau_s, p.max_steer_rate_rad_s)
         self.rim_speed_m_s = _lag(self.rim_speed_m_s, speed_t, dt_s, p.speed_tau_s, p.max_accel_m_s2)

@@ -40,6 +40,7 @@ __all__ = [
     "MAX_STEPS",
     "MAX_CIRCLES",
     "run_length_problem",
+    "FieldTask",
 ]
 
 DEFAULT_SCENARIO = "corridor_obstacles"
@@ -335,6 +336,8 @@ class _Reader:
         for i, p in enumerate(v):
             if not _finite_numbers(p, 2):
                 raise self.error((*path, key, i), f"must be a [x_m, y_m] pair of numbers, got {p!r}")
+            if max(abs(p[0]), abs(p[1])) > MAX_MAGNITUDE:
+                raise self.error((*path, key, i), f"must be within +-{MAX_MAGNITUDE:g} m, got {p!r}")
         return np.asarray(v, dtype=float)
 
     def pose(self, d: dict[str, Any], key: str, path: Path_) -> Pose2D:
@@ -343,6 +346,22 @@ class _Reader:
         self.keys(t, p, {"x_m", "y_m", "yaw_deg"})
         return Pose2D(self.num(t, "x_m", p, required=True), self.num(t, "y_m", p, required=True),
                       math.radians(self.num(t, "yaw_deg", p, 0.0)))
+
+
+@dataclass(frozen=True)
+class FieldTask:
+    """A scenario's ``[field]``: the field's navigation task as the Field Robot Event sets it.
+
+    ``pattern``: the turn pattern in the event's notation (``S-1L-2R-F``: S start, nL / nR the n-th lane to the
+    left / right of the one just driven, F finish), the route the run is scored on and the row navigator's default;
+    ``time_limit_s``: the task's time (the event's 3 min): distance counts until then, and a field finished sooner
+    earns the time bonus; ``row_spacing_m``: the distance between rows the robot is told (its row detector's prior).
+    With a field, plants and weeds are soft: the robot may brush them, the referee counts the stems it runs over
+    (``plants_touched``) instead of ending the run."""
+
+    pattern: str
+    time_limit_s: float = 180.0
+    row_spacing_m: float = 0.75
 
 
 @dataclass
@@ -364,6 +383,7 @@ class Scenario:
     tilted_laser: TiltedLaser | None = None
     sonar: SonarRing | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    field: FieldTask | None = None  # a whole field: [field] (its rows are the [[rows]], in order across the field)
 
     def make_robot(self) -> Robot:
         r: Robot
@@ -378,7 +398,7 @@ class Scenario:
 
 
 _TOP_KEYS = {"scenario", "robot", "laser", "tilted_laser", "sonar", "goals", "walls", "boxes", "circles",
-             "polygons", "movers", "rows", "weeds", "holes", "steps", "ruts", "meta"}
+             "polygons", "movers", "rows", "weeds", "holes", "steps", "ruts", "field", "meta"}
 
 
 def _laser_spec(rd: _Reader, t: dict[str, Any], path: Path_, default_model: str) -> LaserSpec:
@@ -469,6 +489,29 @@ def _check_meta(rd: _Reader, meta: dict[str, Any]) -> None:
                                                   f"radius_m > 0, got {r!r}")
 
 
+def _field_task(rd: _Reader, data: dict[str, Any], world: World) -> FieldTask | None:
+    """The ``[field]`` table (None without one): the pattern checked for its notation, at least two rows (one
+    lane); plants and weeds become soft."""
+    if "field" not in data:
+        return None
+    fp: Path_ = ("field",)
+    ft = rd.table(data, "field", ())
+    rd.keys(ft, fp, {"pattern", "time_limit_s", "row_spacing_m"})
+    from ..planning.row_navigator import PatternError, parse_pattern
+
+    pattern = rd.string(ft, "pattern", fp)
+    try:
+        parse_pattern(pattern)
+    except PatternError as e:
+        raise rd.error((*fp, "pattern"), str(e)) from None
+    if len(world.row_lines) < 2:
+        raise rd.error(fp, f"a field needs at least two [[rows]] (one lane between them); this scenario has "
+                           f"{len(world.row_lines)}")
+    world.soft_kinds = ("plant", "weed")
+    return FieldTask(pattern, rd.num(ft, "time_limit_s", fp, 180.0, lo=0.0, lo_open=True),
+                     rd.num(ft, "row_spacing_m", fp, 0.75, lo=0.0, lo_open=True))
+
+
 def run_length_problem(duration_s: float, dt_s: float, what: str = "duration_s") -> str | None:
     """Why a run of ``duration_s`` s in physics steps of ``dt_s`` s is refused (more than :data:`MAX_STEPS`
     steps, with the memory its trajectory would need), or None. ``what`` names the duration in the message."""
@@ -539,19 +582,20 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     for i, c in enumerate(rd.tables(data, "circles")):
         p = ("circles", i)
         rd.keys(c, p, {"x_m", "y_m", "radius_m"})
-        world.add_circles([rd.num(c, "x_m", p, required=True), rd.num(c, "y_m", p, required=True),
-                           rd.num(c, "radius_m", p, required=True, lo=0.0, lo_open=True)])
+        world.add_circles(np.array([rd.num(c, "x_m", p, required=True), rd.num(c, "y_m", p, required=True),
+                                    rd.num(c, "radius_m", p, required=True, lo=0.0, lo_open=True)]))
     for i, g in enumerate(rd.tables(data, "polygons")):
         p = ("polygons", i)
         rd.keys(g, p, {"points"})
         world.add_segments(polyline_segments(rd.points(g, "points", p, 3), closed=True), kind="polygon")
-    for i, m in enumerate(rd.tables(data, "movers")):
+    for i, mv in enumerate(rd.tables(data, "movers")):
         p = ("movers", i)
-        rd.keys(m, p, {"radius_m", "speed_m_s", "waypoints", "loop", "start_s"})
-        wp = rd.points(m, "waypoints", p, 1)
-        world.movers.append(Mover(rd.num(m, "radius_m", p, 0.25, lo=0.0, lo_open=True), rd.num(m, "speed_m_s", p, 1.2, lo=0.0),
-                                  tuple((float(a), float(b)) for a, b in wp), rd.boolean(m, "loop", p, True),
-                                  rd.num(m, "start_s", p, 0.0, lo=0.0)))
+        rd.keys(mv, p, {"radius_m", "speed_m_s", "waypoints", "loop", "start_s"})
+        wp = rd.points(mv, "waypoints", p, 1)
+        world.movers.append(Mover(rd.num(mv, "radius_m", p, 0.25, lo=0.0, lo_open=True),
+                                  rd.num(mv, "speed_m_s", p, 1.2, lo=0.0),
+                                  tuple((float(a), float(b)) for a, b in wp), rd.boolean(mv, "loop", p, True),
+                                  rd.num(mv, "start_s", p, 0.0, lo=0.0)))
     for i, r in enumerate(rd.tables(data, "rows")):
         p = ("rows", i)
         rd.keys(r, p, {"points", "start", "length_m", "amplitude_m", "wavelength_m", "count", "spacing_m",
@@ -583,13 +627,16 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                           f"{length:.4g} m of row every {plant_spacing:g} m x cluster {cluster} x count {count}")
         for k in range(count):
             world.row_lines.append(base + k * spacing * normal)
-            world.add_circles(plants_along(world.row_lines[-1], plant_spacing,
-                                           rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
-                                           cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps), kind="plant")
+            plants = plants_along(world.row_lines[-1], plant_spacing,
+                                  rd.num(r, "plant_radius_m", p, 0.05, lo=0.0, lo_open=True), wrng,
+                                  cluster, rd.num(r, "jitter_m", p, 0.02, lo=0.0), gaps)
+            world.add_circles(plants, kind="plant")
+            # each plant's stem: the mean of its circles (plants_along lays them plant by plant)
+            world.row_plants.append(plants[:, :2].reshape(-1, max(1, cluster), 2).mean(axis=1))
     for i, w in enumerate(rd.tables(data, "weeds")):
         p = ("weeds", i)
         rd.keys(w, p, {"region", "count", "radius_m"})
-        reg = w.get("region")
+        reg: Any = w.get("region")
         if not (_finite_box(reg) and reg[0] < reg[2] and reg[1] < reg[3]):
             raise rd.error((*p, "region"), f"must be [xmin_m, ymin_m, xmax_m, ymax_m], finite numbers with min < max, "
                                            f"got {reg!r}")
@@ -664,13 +711,13 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         rd.keys(so, sop, allowed)
         if rd.boolean(so, "enabled", sop, True):
             kw: dict[str, Any] = {}
-            for k in so:
-                if k in ("count", "rays_per_cone"):
-                    kw[k] = rd.integer(so, k, sop, 12, lo=1)
-                elif k in ("cone_deg", "spacing_deg"):
-                    kw[k.replace("_deg", "_rad")] = math.radians(rd.num(so, k, sop, lo=0.0, lo_open=True, hi=179.0))
-                elif k != "enabled":
-                    kw[k] = rd.num(so, k, sop, lo=0.0)
+            for key in so:
+                if key in ("count", "rays_per_cone"):
+                    kw[key] = rd.integer(so, key, sop, 12, lo=1)
+                elif key in ("cone_deg", "spacing_deg"):
+                    kw[key.replace("_deg", "_rad")] = math.radians(rd.num(so, key, sop, lo=0.0, lo_open=True, hi=179.0))
+                elif key != "enabled":
+                    kw[key] = rd.num(so, key, sop, lo=0.0)
             try:
                 sonar = SonarRing(SonarSpec(**kw))
             except ValueError as e:
@@ -678,6 +725,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
 
     meta = rd.table(data, "meta", ())
     _check_meta(rd, meta)
+    task = _field_task(rd, data, world)
     bounds = sc.get("bounds")
     if bounds is not None:
         if not (_finite_box(bounds) and bounds[0] < bounds[2] and bounds[1] < bounds[3]):
@@ -696,7 +744,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         world.bounds = (min(xs) - 1, min(ys) - 1, max(xs) + 1, max(ys) + 1)
 
     return Scenario(name, description, world, kind, params, start, goals, duration, dt, control_hz, vmax,
-                    laser, tilted, sonar, dict(meta))
+                    laser, tilted, sonar, dict(meta), task)
 
 
 def _scenario_dir() -> Any:

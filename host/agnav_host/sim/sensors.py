@@ -8,9 +8,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
+from typing import TYPE_CHECKING, Any, Sequence
 
-from typing import TYPE_CHECKING
+import numpy as np
+import numpy.typing as npt
 
 from ..types import EncoderEdges, FloatArray, LaserScan, Pose2D, SonarFrame
 from ._raycast import cast_rays, cast_rays_at
@@ -212,7 +213,7 @@ class TiltedLaser:
         r0 = np.where(kk > 0, steps[np.maximum(kk - 1, 0)], 0.0)
         frac = g0 / np.where(g0 - g1 > 0, g0 - g1, 1.0)
         r_gnd[rows] = r0 + frac * self.march_step_m
-        r = np.minimum(r_obs, r_gnd)
+        r: FloatArray = np.minimum(r_obs, r_gnd)
         r[r > s.max_range_m] = np.inf
         return r
 
@@ -265,7 +266,7 @@ class SonarSpec:
 
     @property
     def bearings_rad(self) -> FloatArray:
-        return self.spacing_rad * np.arange(self.count)
+        return self.spacing_rad * np.arange(self.count, dtype=np.float64)
 
 
 @dataclass
@@ -280,7 +281,8 @@ class SonarRing:
 
     spec: SonarSpec = field(default_factory=SonarSpec)
 
-    def exact_ranges(self, world: World, pose: Pose2D, t_s: float = 0.0, indices: FloatArray | None = None) -> FloatArray:
+    def exact_ranges(self, world: World, pose: Pose2D, t_s: float = 0.0,
+                     indices: Sequence[int] | npt.NDArray[np.integer[Any]] | None = None) -> FloatArray:
         """Noise-free ranges (k,) of the given sensors (all when None), m; inf when nothing in range."""
         s = self.spec
         idx = np.arange(s.count) if indices is None else np.asarray(indices, dtype=int)
@@ -316,7 +318,7 @@ class SonarRing:
         for i in idx:
             if i < 0 or i >= n:
                 raise ValueError(f"sonar index out of range 0..{n - 1}: {idx}")
-        r = self.exact_ranges(world, pose, t_s, idx).tolist()  # type: ignore[arg-type]
+        r = self.exact_ranges(world, pose, t_s, idx).tolist()
         inf = math.inf
         if rng is not None and s.range_std_m > 0:
             fin = [j for j, v in enumerate(r) if math.isfinite(v)]

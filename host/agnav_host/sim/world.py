@@ -220,7 +220,8 @@ class Rut:
         for off in offsets:
             w = np.abs(lateral - off) / (self.width_m / 2.0)
             h = np.minimum(h, np.where(w < 1.0, -self.depth_m * 0.5 * (1.0 + np.cos(math.pi * w)), 0.0))
-        return h.reshape(np.shape(x))
+        depth: FloatArray = h.reshape(np.shape(x))
+        return depth
 
 
 @dataclass

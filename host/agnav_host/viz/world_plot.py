@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from ..atomic import savefig_atomic
 from ..types import FloatArray, Goal, Pose2D
@@ -117,7 +118,8 @@ class Footprint:
         else:
             a = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
             local = self.radius_m * np.column_stack((np.cos(a), np.sin(a)))
-        return local @ np.array([[c, s], [-s, c]]) + (cx, cy)
+        outline: FloatArray = local @ np.array([[c, s], [-s, c]]) + (cx, cy)
+        return outline
 
     def front_m(self) -> float:
         """Distance from the outline's centre to its front, m."""
@@ -184,7 +186,8 @@ def _offset_line(points: FloatArray, off: float) -> FloatArray:
 def _rect(cx: float, cy: float, lx0: float, lx1: float, ly0: float, ly1: float, yaw: float) -> FloatArray:
     local = np.array([[lx0, ly0], [lx1, ly0], [lx1, ly1], [lx0, ly1]])
     c, s = math.cos(yaw), math.sin(yaw)
-    return local @ np.array([[c, s], [-s, c]]) + (cx, cy)
+    corners: FloatArray = local @ np.array([[c, s], [-s, c]]) + (cx, cy)
+    return corners
 
 
 def _world_of(world_or_scenario: "World | Scenario") -> tuple["World", dict[str, Any]]:
@@ -291,31 +294,32 @@ def draw_world(ax: Any, world_or_scenario: "World | Scenario", t_s: float | None
     seg = np.asarray(w.segments, dtype=float).reshape(-1, 4)
     wall_segs = []
     solids: dict[str, list[FloatArray]] = {}
-    for kind, a, b in _kinds(len(seg), w.segment_kinds, "wall"):
+    for kind, i0, i1 in _kinds(len(seg), w.segment_kinds, "wall"):
         if kind in ("box", "polygon"):
-            solids.setdefault(kind, []).append(seg[a:b, :2])
+            solids.setdefault(kind, []).append(seg[i0:i1, :2])
         else:
             kind = "wall"
-            wall_segs.append(seg[a:b])
+            wall_segs.append(seg[i0:i1])
         counts[kind] = counts.get(kind, 0) + 1
     for kind, polys in solids.items():
         _patches(ax, polys, kind, zorder=2.0)
     if wall_segs:
-        s = np.vstack(wall_segs)
-        lc = LineCollection(s.reshape(-1, 2, 2), colors=_STYLE["wall"]["color"], linewidths=_STYLE["wall"]["lw"],
-                            zorder=2.0)
+        walls = np.vstack(wall_segs)
+        # matplotlib's stubs ask for a Sequence; its documented (n, 2, 2) array is what it is given
+        lc = LineCollection(walls.reshape(-1, 2, 2),  # type: ignore[arg-type]
+                            colors=_STYLE["wall"]["color"], linewidths=_STYLE["wall"]["lw"], zorder=2.0)
         lc.set_gid("wall")
         ax.add_collection(lc, autolim=False)
 
     # circles by kind
     circ = np.asarray(w.circles, dtype=float).reshape(-1, 3)
     by_kind: dict[str, list[FloatArray]] = {}
-    for kind, a, b in _kinds(len(circ), w.circle_kinds, "post"):
-        by_kind.setdefault(kind if kind in ("plant", "weed") else "post", []).append(circ[a:b])
+    for kind, i0, i1 in _kinds(len(circ), w.circle_kinds, "post"):
+        by_kind.setdefault(kind if kind in ("plant", "weed") else "post", []).append(circ[i0:i1])
     for kind, parts in by_kind.items():
-        c = np.vstack(parts)
-        _circles(ax, c, kind)
-        counts[kind] = len(c)
+        kind_circles = np.vstack(parts)
+        _circles(ax, kind_circles, kind)
+        counts[kind] = len(kind_circles)
     for k, line in enumerate(w.row_lines):
         ln, = ax.plot(line[:, 0], line[:, 1], zorder=1.5, **_STYLE["row_line"])
         ln.set_gid("row_line")
@@ -377,7 +381,7 @@ def _arrow(ax: Any, x: float, y: float, yaw: float, length: float, color: str, g
 def _arrow_length(ax: Any) -> float:
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
-    return max(0.25, 0.04 * max(abs(x1 - x0), abs(y1 - y0)))
+    return max(0.25, 0.04 * float(max(abs(x1 - x0), abs(y1 - y0))))
 
 
 def draw_goals(ax: Any, goals: Iterable[Goal], start: Pose2D | None = None, numbers: int = 12) -> int:
@@ -420,7 +424,7 @@ def draw_goals(ax: Any, goals: Iterable[Goal], start: Pose2D | None = None, numb
     return len(gl)
 
 
-def footprint_times(t_s: FloatArray, every_s: float) -> FloatArray:
+def footprint_times(t_s: FloatArray, every_s: float) -> npt.NDArray[np.intp]:
     """Indices of the samples at which a footprint is drawn: the first sample at or after each multiple of
     ``every_s`` (0 included), the last sample excluded (it gets the end outline)."""
     t = np.asarray(t_s, dtype=float)
@@ -456,7 +460,8 @@ def draw_run(ax: Any, rows: FloatArray, footprint: Footprint | None = None, ever
     hi = max(float(v.max()) if len(v) else 0.0, lo + 1e-3)
     pts = xy.reshape(-1, 1, 2)
     segs = np.concatenate((pts[:-1], pts[1:]), axis=1) if len(xy) > 1 else np.zeros((0, 2, 2))
-    lc = LineCollection(segs, cmap=cmap, norm=Normalize(lo, hi), linewidths=2.0, zorder=4)
+    # an (n, 2, 2) array, as for the walls (matplotlib's stubs ask for a Sequence)
+    lc = LineCollection(segs, cmap=cmap, norm=Normalize(lo, hi), linewidths=2.0, zorder=4)  # type: ignore[arg-type]
     lc.set_array(0.5 * (v[:-1] + v[1:]) if len(v) > 1 else np.zeros(0))
     lc.set_gid("path")
     ax.add_collection(lc, autolim=False)

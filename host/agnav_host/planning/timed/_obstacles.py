@@ -165,15 +165,15 @@ def first_conflict(plan: TimedPlan, obstacles: Sequence[SpaceTimeObstacle], t_fr
     r_rob = plan.limits.radius_m
     best: Conflict | None = None
     for i, ob in enumerate(obstacles):
-        O, R = ob.predict(ts)
-        gap = np.hypot(P[:, 0] - O[:, 0], P[:, 1] - O[:, 1]) - R - r_rob - margin_m
+        centre, R = ob.predict(ts)
+        gap = np.hypot(P[:, 0] - centre[:, 0], P[:, 1] - centre[:, 1]) - R - r_rob - margin_m
         bad = np.flatnonzero(gap < 0.0)
         if len(bad) and (best is None or ts[bad[0]] < best.t_s):
             k = int(bad[0])
             k2 = min(k + 1, len(ts) - 1)
             k1 = k2 - 1 if k2 > 0 else 0
-            vel = (O[k2] - O[k1]) / max(ts[k2] - ts[k1], 1e-9) if k2 != k1 else np.zeros(2)
-            best = Conflict(float(ts[k]), i, (float(P[k, 0]), float(P[k, 1])), (float(O[k, 0]), float(O[k, 1])),
+            vel = (centre[k2] - centre[k1]) / max(ts[k2] - ts[k1], 1e-9) if k2 != k1 else np.zeros(2)
+            best = Conflict(float(ts[k]), i, (float(P[k, 0]), float(P[k, 1])), (float(centre[k, 0]), float(centre[k, 1])),
                             (float(vel[0]), float(vel[1])), float(gap[k]))
     return best
 

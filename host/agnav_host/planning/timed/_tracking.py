@@ -110,8 +110,8 @@ def track(plan: TimedPlan, pose: Pose2D, speed_m_s: float, t_s: float, st: Track
     path = plan.path
     s_rob, lat = path.project(pose.x_m, pose.y_m, st.s_m, window_m=max(1.0, 3.0 * abs(speed_m_s) + 0.5))
     st.s_m, st.lateral_m = s_rob, lat
-    s_ref, v_ref = plan.profile.eval(t_s - plan.t0_s)
-    s_ref, v_ref = float(s_ref), float(v_ref)
+    s_ref_a, v_ref_a = plan.profile.eval(t_s - plan.t0_s)
+    s_ref, v_ref = float(s_ref_a), float(v_ref_a)
     st.s_ref_m, st.v_ref_m_s = s_ref, v_ref
     gx, gy = plan.goal.x_m, plan.goal.y_m
     remaining = max(path.length_m - s_rob, 0.0)

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -260,7 +260,8 @@ class TimedPlanner:
         along = pts[c] @ t_hat
         a_blk = along[blocks]
         keep = (along >= a_blk.min() - reach_m) & (along <= a_blk.max() + reach_m)
-        return c[keep]
+        out: npt.NDArray[np.intp] = c[keep]
+        return out
 
     def _deviation_points(self, obs: Observation, pts: FloatArray, mask: np.ndarray,
                           s_blk_m: float) -> list[tuple[str, tuple[float, float]]]:
@@ -341,9 +342,11 @@ class TimedPlanner:
         if given is None and p.track_from_scan and obs.scan is not None and obs.scan.pose is not None:
             self.tracked_moving = [tr for tr in self.tracker.update(obs.scan, t, movers_only=True) if tr.moving]
             given = self.tracked_moving
-        tracks = moving_obstacles_from(given, t)  # type: ignore[arg-type]
-        seen_now = [float(getattr(g, "unseen_s", 0.0)) <= 0.0 for g in given or []]  # type: ignore[union-attr]
-        peers = [PlanObstacle(pp, pp.limits.radius_m) for pp in obs.extras.get("peer_plans") or []]  # type: ignore[union-attr]
+        given_list: list[Any] = [] if given is None else list(cast(Iterable[Any], given))
+        tracks = moving_obstacles_from(given_list, t)
+        seen_now = [float(getattr(g, "unseen_s", 0.0)) <= 0.0 for g in given_list]
+        peer_plans = obs.extras.get("peer_plans")
+        peers = [PlanObstacle(pp, pp.limits.radius_m) for pp in list(cast(Iterable[Any], peer_plans or []))]
         if peers and tracks:  # a track where a peer's plan puts it is that robot: its plan predicts it better
             keep_t = [not _is_peer(m, peers, t, p.peer_match_m) for m in tracks]
             tracks = [m for m, k in zip(tracks, keep_t) if k]
@@ -450,6 +453,7 @@ class TimedPlanner:
         vias = self._remaining_vias()
         searching = False
         work = (1, 0)
+        new: TimedPlan | None
         try:
             if why in ("delay", "early"):  # the same path re-timed to the requested arrival
                 new = plan_timed(start, goal, t, arrival, self.limits, vias, deadline=t0 + budget, auto_via=False)

@@ -355,7 +355,7 @@ class ScipEmulator:
         need = 13 if with_run else 10
         if len(params) != need:
             return format_reply(line, "0C")
-        fields = ((params[0:4], "01"), (params[4:8], "02"), (params[8:10], "03"))
+        fields: tuple[tuple[str, str], ...] = ((params[0:4], "01"), (params[4:8], "02"), (params[8:10], "03"))
         if with_run:
             fields += ((params[10:11], "06"), (params[11:13], "07"))
         for text, status in fields:
