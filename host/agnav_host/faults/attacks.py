@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import os
 import re
 import select
 import signal
@@ -793,6 +794,21 @@ def format_table(rows: list[AttackResult], markdown: bool = True) -> str:
     return "\n".join(lines)
 
 
+def _unwritable(path: Path) -> str:
+    """Why ``path`` cannot be written ('' when it can): a folder, or no write access to it or to the
+    nearest folder that exists."""
+    if path.is_dir():
+        return "it is a folder"
+    if path.exists():
+        return "" if os.access(path, os.W_OK) else "no write access"
+    parent = path.parent.resolve()
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{parent} is not a folder"
+    return "" if os.access(parent, os.W_OK | os.X_OK) else f"no write access to {parent}"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m agnav_host.faults.attacks", description=__doc__.split("\n\n")[0])
     ap.add_argument("--markdown", metavar="FILE", help="also write the table as markdown")
@@ -808,9 +824,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"attacks: no attack matches {', '.join(ns.only)}", file=sys.stderr)
         return 2
     if ns.markdown:  # before the attacks run (a minute or more), not after
-        from ..cli.outputs import unwritable_file
-
-        why = unwritable_file(Path(ns.markdown))
+        why = _unwritable(Path(ns.markdown))
         if why:
             print(f"attacks: --markdown {ns.markdown}: cannot write there: {why}", file=sys.stderr)
             return 2
