@@ -14,7 +14,8 @@ from _cli_helpers import _no_user_config  # noqa: F401 (the fixture is autouse)
 
 #: The least each command needs to parse (its required options and positionals)
 MINIMAL = {"sim": ["--out", "o"], "plan": ["--start", "0,0,0", "--goal", "3,5,90"], "rows": ["--scan", "s.csv"],
-           "bench": ["planners"], "calibrate": ["steering"], "param": ["list"], "key": ["show"], "replay": ["r.tlog"]}
+           "bench": ["planners"], "calibrate": ["steering"], "param": ["list"], "key": ["show"], "replay": ["r.tlog"],
+           "field": ["new", "--out", "f.toml"]}
 NEGATIVES = ("-1", "-1,-2", "-1,-2,-3", "-0.5,2,-90")
 
 
