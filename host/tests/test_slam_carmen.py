@@ -144,3 +144,12 @@ def test_looks_like_carmen_tells_logs_from_other_text():
     assert looks_like_carmen(flaser("1").encode())
     assert not looks_like_carmen(b"t,x,y\n1,2,3\n")
     assert not looks_like_carmen(b"")
+
+
+def test_a_cut_robotlaser_or_rawlaser_line_names_the_fields_a_whole_one_has():
+    whole = robotlaser("7.25", n=5).split()
+    assert len(whole) == 5 + 10 + 14
+    log = parse_carmen_lines([" ".join(whole[:12]), "RAWLASER1 0 -1.57 3.14 0.78 50 0.1 0 5 3 3"])
+    assert log.skipped == 2
+    assert "5 beams need at least 29 fields, the line has 12" in log.skip_examples[0].why
+    assert "5 beams need at least 18 fields, the line has 11" in log.skip_examples[1].why

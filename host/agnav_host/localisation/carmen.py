@@ -212,17 +212,23 @@ def _geometry(toks: list[str]) -> tuple[float, float, float, int]:
     return start, res, rmax, _count(toks[8], "beam count")
 
 
-def _robotlaser(tag: str, toks: list[str], line: int) -> CarmenScan:
+def _beams(tag: str, toks: list[str], tail: int) -> tuple[float, float, float, FloatArray, int]:
+    """The beam geometry, the ranges and the index after the remissions of a ROBOTLASER or RAWLASER line, whose
+    remissions are followed by ``tail`` fields."""
     if len(toks) < 10:
-        raise _Bad(f"the line has {len(toks)} fields, too few for a ROBOTLASER message")
+        raise _Bad(f"the line has {len(toks)} fields, too few for a {tag[:-1]} message")
     start, res, rmax, n = _geometry(toks)
     if len(toks) < 10 + n:
-        raise _Bad(f"{n} beams need at least {n + 21} fields, the line has {len(toks)}")
+        raise _Bad(f"{n} beams need at least {n + 10 + tail} fields, the line has {len(toks)}")
     m = _count(toks[9 + n], "remission count")
     i = 10 + n + m
-    if len(toks) != i + 14:
-        raise _Bad(f"{n} beams and {m} remissions need {i + 14} fields, the line has {len(toks)}")
-    ranges = _ranges(toks[9:9 + n], rmax)
+    if len(toks) != i + tail:
+        raise _Bad(f"{n} beams and {m} remissions need {i + tail} fields, the line has {len(toks)}")
+    return start, res, rmax, _ranges(toks[9:9 + n], rmax), i
+
+
+def _robotlaser(tag: str, toks: list[str], line: int) -> CarmenScan:
+    start, res, rmax, ranges, i = _beams(tag, toks, 14)
     laser = _pose(toks[i:i + 3])
     odom = _pose(toks[i + 3:i + 6])
     t, t_text = _stamp(toks, i + 11)
@@ -231,17 +237,9 @@ def _robotlaser(tag: str, toks: list[str], line: int) -> CarmenScan:
 
 
 def _rawlaser(tag: str, toks: list[str], line: int) -> CarmenScan:
-    if len(toks) < 10:
-        raise _Bad(f"the line has {len(toks)} fields, too few for a RAWLASER message")
-    start, res, rmax, n = _geometry(toks)
-    if len(toks) < 10 + n:
-        raise _Bad(f"{n} beams need at least {n + 13} fields, the line has {len(toks)}")
-    m = _count(toks[9 + n], "remission count")
-    i = 10 + n + m
-    if len(toks) != i + 3:
-        raise _Bad(f"{n} beams and {m} remissions need {i + 3} fields, the line has {len(toks)}")
+    start, res, rmax, ranges, i = _beams(tag, toks, 3)
     t, t_text = _stamp(toks, i)
-    return CarmenScan(t, t_text, start, res, _ranges(toks[9:9 + n], rmax), rmax, None, Pose2D(), line, tag)
+    return CarmenScan(t, t_text, start, res, ranges, rmax, None, Pose2D(), line, tag)
 
 
 def _odom(toks: list[str]) -> tuple[float, Pose2D | None]:
