@@ -93,6 +93,9 @@ def test_a_second_client_is_refused_with_a_statustext_and_the_first_keeps_the_li
     mav = D.MAVLink(None)
     msgs = [m for m in (mav.parse_buffer(data) or []) if m.get_type() == "STATUSTEXT"]
     assert msgs and "owns the link" in msgs[0].text, data[:200]
+    t_end = time.monotonic() + 5.0  # the serving thread logs the refusal after it has sent the STATUSTEXT and closed
+    while not any("refused" in m for m in box["log"]) and time.monotonic() < t_end:
+        time.sleep(0.05)
     assert any("refused" in m for m in box["log"]), box["log"]
     first.settimeout(1.0)
     got = 0

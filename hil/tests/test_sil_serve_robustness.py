@@ -4,6 +4,7 @@ the firmware's serial buffer."""
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import socket
@@ -41,6 +42,8 @@ def test_good_tcp_endpoints():
 
 
 def _fds() -> int:
+    """Open descriptors of this process, after a collection (another test's objects may still hold some)."""
+    gc.collect()
     return len(os.listdir("/proc/self/fd"))
 
 
@@ -55,7 +58,7 @@ def test_each_served_run_gives_back_its_pty_and_firmware():
     for _ in range(3):
         res = serve(sc, ServeOptions(tcp=None, pty=True, speedup=50, duration_s=0.3), log=lambda m: None)
         assert isinstance(res, ServeResult) and res.t_s > 0.3
-    assert _fds() == fds
+    assert _fds() <= fds, "a served run kept a descriptor (its pty or socket)"
     assert _mapped_firmware_copies() == copies
 
 
