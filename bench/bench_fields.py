@@ -15,9 +15,11 @@ Prints the BENCHMARKS.md rows and writes them with every run to bench/results/fi
 * time per lane: each lane driven in the pattern's order (from field.json's lanes: the footprint centre inside the
   lane, end to end) against its length at the navigator's lane speed (0.4 m/s; the RC car 0.457 m/s, 5 % over its
   speed table's least step); the turns are the times between lanes.
-* proximity: curvy_row, world seeds 7..11 (seed n: its bushes from world_seed 7 + n), the proximity follower, the
-  distance from the row as planted (each bush's centre averaged over 3 m of row, sim.metrics.row_distance) and from
-  the design line beside it, every sample past the first 2 m of travel; runner and SIL.
+* proximity: curvy_row, world seeds 7..16 (``--worlds 10``; seed n: its bushes from world_seed 7 + n), the proximity
+  follower, the distance from the row as planted (each bush's centre averaged over 3 m of row,
+  sim.metrics.row_distance) and from the design line beside it, every sample past the first 2 m of travel; runner
+  and SIL.
+* floor: in the same worlds, how far the row as planted moves against what a laser sees of it (``_proximity_floor``).
 """
 
 from __future__ import annotations
@@ -88,6 +90,36 @@ def _proximity_run(job: tuple[int, str]) -> dict[str, Any]:
             "design": {"mean_m": rd.mean_m, "min_m": rd.min_m, "max_m": rd.max_m, "within_band": rd.within}}
 
 
+def _proximity_floor(seed: int) -> dict[str, Any]:
+    """What a laser on the robot's side cannot see of the row as planted, in world ``seed``. Each plant is a cluster
+    of circles; its planted position is the mean of their centres, while a laser at the robot's height sees the face
+    of the nearest circle. The gap between the two varies from plant to plant; its mean over the metric's 3 m of row
+    (less its mean over the row) moves the row as planted against anything a face follower can measure. Its range
+    is a floor under the follower's range about 1 m, before any control error."""
+    import numpy as np
+
+    from agnav_host.sim.metrics import PLANTED_WINDOW_M, along_and_offset_m
+    from agnav_host.sim.scenario import builtin_text, parse_scenario
+
+    sc = parse_scenario(builtin_text("curvy_row").replace("world_seed = 7", f"world_seed = {7 + seed}"), "<curvy_row>")
+    line = np.asarray(sc.world.row_lines[0], dtype=float)
+    plants = np.asarray(sc.world.row_plants[0], dtype=float)
+    circles = np.asarray(sc.world.circles, dtype=float)
+    sp, npl = along_and_offset_m(plants[:, 0], plants[:, 1], line)
+    sc_, nc = along_and_offset_m(circles[:, 0], circles[:, 1], line)
+    side = -1.0 if sc.meta.get("follow_side", "right") == "right" else 1.0
+    face = np.full(len(plants), -np.inf)  # how far each plant's nearest circle reaches towards the robot's side
+    for i in range(len(circles)):
+        j = int(np.argmin(np.hypot(sc_[i] - sp, nc[i] - npl)))
+        face[j] = max(face[j], side * nc[i] + circles[i, 2])
+    hidden = face - side * npl
+    hidden -= hidden.mean()
+    grid = np.arange(2.0, float(sp.max()) - 2.0, 0.05)
+    win = np.array([hidden[np.abs(sp - s) <= 0.5 * PLANTED_WINDOW_M].mean() for s in grid])
+    return {"seed": seed, "plant_sd_m": float(hidden.std()), "min_m": float(win.min()), "max_m": float(win.max()),
+            "sd_m": float(win.std())}
+
+
 def _pool(fn: Any, jobs: list[Any], n: int) -> list[Any]:
     if n <= 1:
         return [fn(j) for j in jobs]
@@ -145,10 +177,11 @@ def _detail(runs: list[dict[str, Any]]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="runner,sil,proximity", help="runner, sil, proximity (comma-separated)")
+    ap.add_argument("--only", default="runner,sil,proximity,floor", help="runner, sil, proximity, floor (comma-separated)")
     ap.add_argument("--seeds", type=int, default=20, help="fields per difficulty and robot (default 20)")
     ap.add_argument("--sil-seeds", type=int, default=None, help="fields per difficulty in the SIL (default --seeds)")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--worlds", type=int, default=10, help="proximity and floor: curvy_row worlds (default 10)")
     ap.add_argument("--out", default=None, help="the results file (default bench/results/fields_<only>.md)")
     a = ap.parse_args(argv)
     parts = {p.strip() for p in a.only.split(",") if p.strip()}
@@ -167,8 +200,10 @@ def main(argv: list[str] | None = None) -> int:
         c = f".venv/bin/{cmd} --only {backend} --seeds {n}"
         table += _field_rows(got, backend, c) + _time_rows(got, backend, c)
     prox: list[dict[str, Any]] = []
+    fl: list[dict[str, Any]] = []
+    wcmd = "" if a.worlds == 10 else f" --worlds {a.worlds}"
     if "proximity" in parts:
-        prox = _pool(_proximity_run, [(s, b) for b in ("runner", "sil") for s in range(5)], a.jobs)
+        prox = _pool(_proximity_run, [(s, b) for b in ("runner", "sil") for s in range(a.worlds)], a.jobs)
         for b in ("runner", "sil"):
             ps = [p for p in prox if p["backend"] == b]
             lo = min(p["planted"]["min_m"] for p in ps)
@@ -178,11 +213,21 @@ def main(argv: list[str] | None = None) -> int:
             means = [p["planted"]["mean_m"] for p in ps]
             inside = min(p["planted"]["within_band"] for p in ps)
             met = lo >= 0.95 and hi <= 1.05
-            table.append(f"| proximity at 1 m on curvy_row (5 cm planting jitter), 5 worlds, {b}: distance from the row "
+            table.append(f"| proximity at 1 m on curvy_row (5 cm planting jitter), {a.worlds} worlds, {b}: distance from the row "
                          f"as planted (each bush's centre averaged over 3 m of row) | means {min(means):.3f}-"
                          f"{max(means):.3f} m, range {lo:.3f}-{hi:.3f} m, every world >= {100 * inside:.1f} % inside; "
                          f"from the design line beside it {dlo:.3f}-{dhi:.3f} m | 1 +- 0.05 m | "
-                         f"{'yes' if met else '**no**'} | `.venv/bin/{cmd} --only proximity` |")
+                         f"{'yes' if met else '**no**'} | `.venv/bin/{cmd} --only proximity{wcmd}` |")
+    if "floor" in parts:
+        fl = [_proximity_floor(s) for s in range(a.worlds)]
+        table.append(f"| the part of the row as planted a laser cannot see (each plant's nearest circle against the mean of its "
+                     f"circles, over 3 m of row), {a.worlds} worlds of curvy_row: a floor under the follower's range "
+                     f"about 1 m | per plant sd {1e3 * min(f['plant_sd_m'] for f in fl):.0f}-"
+                     f"{1e3 * max(f['plant_sd_m'] for f in fl):.0f} mm; over 3 m of row "
+                     f"{1e3 * min(f['min_m'] for f in fl):+.0f} to {1e3 * max(f['max_m'] for f in fl):+.0f} mm "
+                     f"(sd {1e3 * min(f['sd_m'] for f in fl):.0f}-{1e3 * max(f['sd_m'] for f in fl):.0f} mm); worst world "
+                     f"spread {1e3 * max(f['max_m'] - f['min_m'] for f in fl):.0f} mm of the band's 100 mm | - | - | "
+                     f"`.venv/bin/{cmd} --only floor{wcmd}` |")
     print("| What | Figure | Target | Met | Command |\n|---|---|---|---|---|")
     print("\n".join(table))
     out = Path(a.out) if a.out else ROOT / "bench" / "results" / f"fields_{'_'.join(sorted(parts))}.md"
@@ -196,6 +241,11 @@ def main(argv: list[str] | None = None) -> int:
         text += [f"| {p['backend']} | {p['seed']} | {p['end']} | {p['planted']['mean_m']:.3f} | "
                  f"{p['planted']['min_m']:.3f}-{p['planted']['max_m']:.3f} | {100 * p['planted']['within_band']:.1f} % | "
                  f"{p['design']['min_m']:.3f}-{p['design']['max_m']:.3f} |" for p in prox]
+    if fl:
+        text += ["", "What a laser cannot see of the row as planted, per world (over 3 m of row, less its mean):", "",
+                 "| seed | per plant sd mm | over 3 m of row mm | sd mm |", "|---|---|---|---|"]
+        text += [f"| {f['seed']} | {1e3 * f['plant_sd_m']:.1f} | {1e3 * f['min_m']:+.1f} to {1e3 * f['max_m']:+.1f} | "
+                 f"{1e3 * f['sd_m']:.1f} |" for f in fl]
     out.write_text("\n".join(text) + "\n", encoding="utf-8")
     print(f"wrote {out}", file=sys.stderr)
     return 0
