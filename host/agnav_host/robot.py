@@ -15,6 +15,7 @@ Clock: every time in a run is seconds since :meth:`RobotRun.run` started (``t0_m
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,11 +29,14 @@ from .hostloop import Decision, HostLoop, OdometryReport, SensorFrame, firmware_
 from .lasers import DeviceClock, LaserInfo, LaserMount, LaserSource
 from .link.state import PoseState
 from .planning.base import RobotSpec
+from .streamfile import StreamedFile, StreamFile
 from .types import DriveCommand, Goal, LaserScan, Pose2D, SonarFrame
 from .units import milli_to_si
 
 __all__ = ["RobotRun", "RunSettings", "RobotOutcome", "LaserFeed", "RunOutputs", "POSE_STALE_S", "TRAJECTORY_COLUMNS",
            "latency_summary"]
+
+_log = logging.getLogger(__name__)
 
 #: A host controller steers on the robot's odometry (AGNAV_ODOMETRY, 10 Hz): older than this (5 frames
 #: missed) and it would drive blind, so the robot is held stopped instead.
@@ -96,28 +100,48 @@ class RunOutputs:
     appended every step), ``laser.alog`` (every scan of every laser, :mod:`agnav_host.lasers.log`),
     ``recording.rrd`` (rerun, streamed to disk), ``localisation.csv`` (with a localiser: its state and pose sigma
     every step) and, at the end, ``summary.json`` (the keys of ``agnav sim``), ``run_info.json`` and
-    ``trajectory.png``."""
+    ``trajectory.png``.
+
+    The streamed files go through :class:`~agnav_host.streamfile.StreamFile`: a full disk (any write error) never
+    ends the run; the file stops on its last whole record (a CSV line, a laser-log record, a rerun message) and
+    is said once, as a WARNING of the library's logger, a WARN text in the recording while it still records,
+    and in ``run_info.json`` (``output_errors``). A file that never got a whole record is removed.
+    :meth:`finish` lists the files on the disk, each a :class:`~agnav_host.streamfile.StreamedFile`, whose
+    :meth:`~agnav_host.streamfile.StreamedFile.listing` says ``partial (N B)`` for one that stopped early."""
 
     def __init__(self, out: str | Path | None, rrd: str | Path | None = None) -> None:
         from .lasers.log import LaserLogWriter
 
         self.dir = Path(out) if out is not None else None
         self.rows: list[tuple[float, ...]] = []
-        self._traj: Any = None
+        self.errors: list[str] = []  # each streamed file's write error, as said
+        self.unwritten: list[str] = []  # finish(): the files written whole at the end that could not be
+        self._traj: StreamFile | None = None
         self.log: Any = None
+        self.rec: Any = None
         if self.dir is not None:
             self.dir.mkdir(parents=True, exist_ok=True)
-            self._traj = open(self.dir / "trajectory.csv", "w", encoding="utf-8")
-            self._traj.write(",".join(TRAJECTORY_COLUMNS) + "\n")
-            self.log = LaserLogWriter(self.dir / "laser.alog")
-        self._loc: Any = None  # localisation.csv, opened on the first step with a localiser
+            self._traj = StreamFile(self.dir / "trajectory.csv", "trajectory", on_error=self._file_error)
+            self._traj.write_text(",".join(TRAJECTORY_COLUMNS) + "\n")
+            self.log = LaserLogWriter(self.dir / "laser.alog", on_error=self._file_error)
+        self._loc: StreamFile | None = None  # localisation.csv, opened on the first step with a localiser
+        self._loc_failed = False
         self._declared: set[int] = set()
-        self.rec: Any = None
         self.rrd = Path(rrd) if rrd is not None else None
         if self.rrd is not None:
             from .viz.recorder import Recorder
 
-            self.rec = Recorder.streaming_to(self.rrd)
+            self.rec = Recorder.streaming_to(self.rrd, on_error=self._file_error)
+
+    def _file_error(self, message: str) -> None:
+        """A streamed file stopped (already logged by its StreamFile): kept for run_info.json and put in the
+        recording's log."""
+        self.errors.append(message)
+        if self.rec is not None:
+            try:
+                self.rec.log_text(message, "WARN")
+            except Exception:  # noqa: BLE001  (the recording is secondary: the run goes on)
+                pass
 
     def scan(self, laser_id: int, feed: LaserFeed, scan: LaserScan, t_s: float, pose: Pose2D | None) -> None:
         if self.log is not None and laser_id not in self._declared:
@@ -135,8 +159,8 @@ class RunOutputs:
         row = (t_s, pose.x_m, pose.y_m, pose.yaw_rad, speed, yaw_rate, clearance, float(goal_index))
         self.rows.append(row)
         if self._traj is not None:
-            self._traj.write(f"{row[0]:.3f},{row[1]:.6f},{row[2]:.6f},{row[3]:.6f},{row[4]:.6f},{row[5]:.6f},"
-                         f"{row[6]:.6f},{goal_index}\n")
+            self._traj.write_text(f"{row[0]:.3f},{row[1]:.6f},{row[2]:.6f},{row[3]:.6f},{row[4]:.6f},{row[5]:.6f},"
+                                  f"{row[6]:.6f},{goal_index}\n")
         if self.rec is not None:
             self.rec.set_time(t_s)
             self.rec.log_pose(PoseState(t_s, pose.x_m, pose.y_m, pose.yaw_rad, speed, yaw_rate, t_s))
@@ -147,52 +171,73 @@ class RunOutputs:
 
     def localisation(self, t_s: float, state: str, sigma: tuple[float, float, float]) -> None:
         """A row of ``localisation.csv``: the localiser's state and its pose sigma (x m, y m, yaw rad)."""
-        if self.dir is None:
+        if self.dir is None or self._loc_failed:
             return
         if self._loc is None:
-            self._loc = open(self.dir / "localisation.csv", "w", encoding="utf-8")
-            self._loc.write("t_s,state,sigma_x_m,sigma_y_m,sigma_yaw_rad\n")
-        self._loc.write(f"{t_s:.3f},{state or '-'},{sigma[0]:.5f},{sigma[1]:.5f},{sigma[2]:.6f}\n")
+            path = self.dir / "localisation.csv"
+            try:
+                self._loc = StreamFile(path, "localisation", on_error=self._file_error)
+            except OSError as e:
+                self._loc_failed = True
+                msg = f"localisation {path}: {e.strerror or e}: not written, the run goes on"
+                _log.warning("%s", msg)
+                self._file_error(msg)
+                return
+            self._loc.write_text("t_s,state,sigma_x_m,sigma_y_m,sigma_yaw_rad\n")
+        self._loc.write_text(f"{t_s:.3f},{state or '-'},{sigma[0]:.5f},{sigma[1]:.5f},{sigma[2]:.6f}\n")
 
     def text(self, t_s: float, text: str, level: str = "INFO") -> None:
         if self.rec is not None:
             self.rec.set_time(t_s)
             self.rec.log_text(text, level)
 
-    def finish(self, settings: RunSettings, outcome: RobotOutcome, info: dict[str, Any], plot: bool = True) -> list[Path]:
+    def finish(self, settings: RunSettings, outcome: RobotOutcome, info: dict[str, Any],
+               plot: bool = True) -> list[StreamedFile]:
+        """Close the streamed files, write summary.json, run_info.json (with ``output_errors``) and the plot
+        (each whole or not at all); the files on the disk, in that order (a removed empty file is not listed).
+        Those that could not be written are in ``unwritten`` ("name: reason")."""
         from .sim.metrics import RunMetrics
 
-        written: list[Path] = []
+        written: list[StreamedFile] = []
         if self.rec is not None:
             self.rec.close()
-            assert self.rrd is not None
-            written.append(self.rrd)
+            if self.rec.result is not None:
+                written.append(self.rec.result)
         if self.dir is None:
-            return written
-        self._traj.close()
-        self.log.close()
-        written += [self.dir / "trajectory.csv", self.dir / "laser.alog"]
+            return [f for f in written if f.kept]
+        assert self._traj is not None and self.log is not None
+        written += [self._traj.close(), self.log.close()]
         if self._loc is not None:
-            self._loc.close()
-            written.append(self.dir / "localisation.csv")
+            written.append(self._loc.close())
+        written = [f for f in written if f.kept]
         rows = np.array(self.rows, dtype=float) if self.rows else np.zeros((1, len(TRAJECTORY_COLUMNS)))
         last = settings.goals[-1]
         arrived = outcome.reason == "arrived"
         m = RunMetrics.compute(rows[:, 0], rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], rows[:, 6],
                                (last.x_m, last.y_m), last.yaw_rad, last.arrival_s, arrived,
                                outcome.t_s if arrived else None)
-        write_atomic(self.dir / "summary.json", json.dumps(m.to_dict(), indent=2) + "\n")
-        write_atomic(self.dir / "run_info.json", json.dumps(info, indent=2) + "\n")
-        written += [self.dir / "summary.json", self.dir / "run_info.json"]
+        info = {**info, "output_errors": list(self.errors)}
+        for name, text in (("summary.json", json.dumps(m.to_dict(), indent=2) + "\n"),
+                           ("run_info.json", json.dumps(info, indent=2) + "\n")):
+            try:
+                p = write_atomic(self.dir / name, text)
+            except OSError as e:  # whole or not at all: listed as not written, the others still tried
+                self.unwritten.append(f"{name}: {e.strerror or e}")
+                continue
+            written.append(StreamedFile(p, len(text.encode("utf-8")), 1))
         if plot and len(self.rows) > 1:
-            png = _plot_run(rows, settings, self.dir / "trajectory.png", outcome.reason)
+            try:
+                png = _plot_run(rows, settings, self.dir / "trajectory.png", outcome.reason)
+            except OSError as e:
+                self.unwritten.append(f"trajectory.png: {e.strerror or e}")
+                png = None
             if png is not None:
-                written.append(png)
+                written.append(StreamedFile(png, png.stat().st_size, 1))
         return written
 
     def abandon(self) -> None:
         """Close what is open after a failure (the files keep what was written)."""
-        for c in (self._traj, self.log):
+        for c in (self._traj, self._loc, self.log):
             try:
                 if c is not None:
                     c.close()

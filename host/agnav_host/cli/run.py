@@ -444,9 +444,21 @@ def _close_recorder(rec: Any, path: str | None) -> None:
         return
     try:
         rec.close()
-        print(f"recording: {path} (open with `rerun {path}`)", file=sys.stderr)
     except OSError as e:
         print(f"agnav run: recording {path} not written: {e.strerror or e}", file=sys.stderr)
+        return
+    _say_recording(rec.result, path)
+
+
+def _say_recording(result: Any, path: str | None) -> None:
+    """Where the streamed recording is: ``partial (N B)`` when a write error stopped it (said when it
+    happened), nothing when not one message reached the disk."""
+    if result is not None and not result.kept:
+        print(f"agnav run: recording {path} not written: {result.error or 'nothing recorded'}", file=sys.stderr)
+    elif result is not None and result.partial:
+        print(f"recording: {path} partial ({result.size_bytes} B) (open with `rerun {path}`)", file=sys.stderr)
+    else:
+        print(f"recording: {path} (open with `rerun {path}`)", file=sys.stderr)
 
 
 def _stop_three_times(robot: Any) -> None:
@@ -577,14 +589,16 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
                     "controller_events": [[round(float(t), 3), str(e)] for t, e in getattr(ctrl, "events", [])][-500:],
                     "latency_s": [round(v, 6) for v in outcome.latency_s]}
             try:
-                for p in outputs.finish(settings, outcome, info, plot=not ns.no_plot):
-                    print(f"  wrote {p}")
+                for f in outputs.finish(settings, outcome, info, plot=not ns.no_plot):
+                    print(f"  wrote {f.listing()}")
                 if ns.rrd:
-                    print(f"recording: {ns.rrd} (open with `rerun {ns.rrd}`)", file=sys.stderr)
+                    _say_recording(outputs.rec.result if outputs.rec is not None else None, ns.rrd)
             except OSError as e:
                 outputs = None
                 raise OutputError(f"--out {out_dir}: {e.strerror or e}") from None
-            outputs = None
+            unwritten, outputs = outputs.unwritten, None
+            if unwritten:
+                raise OutputError(f"--out {out_dir}: not written: {'; '.join(unwritten)}")
         if outcome.reason == "planning_error":
             _err("run", f"planner {planner_name}: {_plain(PlanningError(outcome.message))}; stopped")
             return 1

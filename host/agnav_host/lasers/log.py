@@ -27,9 +27,10 @@ is declared again with the same id, and the scans after it use the new declarati
 they do not know.
 
 The writer (:class:`LaserLogWriter`) truncates an existing file, writes through a buffer and flushes at least
-every 0.5 s (of scan time and of wall-clock time), so a crash loses at most the last half second. A run
-killed mid-write leaves a truncated last record: the readers ignore it and count it
-(``LaserLogReader.truncated_bytes``). Anything else that breaks the format (an unknown tag, bad JSON, ``n``
+every 0.5 s (of scan time and of wall-clock time), so a crash loses at most the last half second. A full disk
+(or any write error) does not end the run: the log is cut back to its last whole record, the error is said
+once (:class:`~agnav_host.streamfile.StreamFile`) and later scans are dropped. A run killed mid-write leaves a
+truncated last record: the readers ignore it and count it (``LaserLogReader.truncated_bytes``). Anything else that breaks the format (an unknown tag, bad JSON, ``n``
 other than the declared ``n_beams``, a SCAN before its LASR, a length that fits no record) raises
 :class:`LaserLogError` naming the file, the byte offset of the record and what is wrong; a file that is
 not a laser log at all raises its subclass :class:`NotALaserLogError` saying what it looks like.
@@ -58,10 +59,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Callable
 
 import numpy as np
 
+from ..streamfile import StreamedFile, StreamFile
 from ..types import LaserScan, Pose2D
 from .base import LaserAddressError, LaserInfo, LaserMount, LaserStats, TelegramError, WrongDeviceError
 
@@ -148,21 +150,25 @@ class LaserLogWriter:
     :meth:`declare` each laser once before its scans, then :meth:`write` every scan; :meth:`close` at the end
     (or use it as a context manager). A scan whose geometry (beam count, first angle, increment, range limit)
     differs from its laser's declaration re-declares the laser first, with the same url, kind, model, mount
-    and stamps. The file is flushed at least every ``flush_s`` of scan time and of wall-clock time. I/O
-    failures raise OSError; a call with bad arguments (an undeclared laser, a non-finite time) ValueError.
-    Safe to call from several threads.
+    and stamps. The file is flushed at least every ``flush_s`` of scan time and of wall-clock time. Opening
+    the file raises OSError; a write error later stops the log on its last whole record, said once (a
+    warning, and ``on_error``), and the writer takes no more (``stopped``; :meth:`close` returns the
+    :class:`~agnav_host.streamfile.StreamedFile`, ``partial`` then). A call with bad arguments (an undeclared
+    laser, a non-finite time) raises ValueError. Safe to call from several threads.
     """
 
-    def __init__(self, path: str | Path, flush_s: float = 0.5) -> None:
+    def __init__(self, path: str | Path, flush_s: float = 0.5, on_error: Callable[[str], None] | None = None) -> None:
         self.path = Path(path)
         self.flush_s = flush_s
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f: IO[bytes] | None = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115 (closed in close())
+        # whole records only: a full disk cuts the log at a record boundary (the time rule below flushes it)
+        self._f: StreamFile | None = StreamFile(self.path, "laser log", flush_s=None, on_error=on_error)
         self._lock = threading.Lock()
         self._decl: dict[int, dict[str, Any]] = {}
         self.scans_written = 0
         self._flushed_wall = time.monotonic()
         self._flushed_t: float | None = None
+        self.result: StreamedFile | None = None  # set by close()
         self._f.write(MAGIC)
 
     def __enter__(self) -> "LaserLogWriter":
@@ -171,7 +177,12 @@ class LaserLogWriter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _file(self) -> IO[bytes]:
+    @property
+    def stopped(self) -> bool:
+        """True once a write error ended the log (the file ends on its last whole record)."""
+        return self._f is not None and self._f.partial
+
+    def _file(self) -> StreamFile:
         if self._f is None:
             raise ValueError(f"{self.path}: the laser log is closed")
         return self._f
@@ -203,8 +214,7 @@ class LaserLogWriter:
     def _declare_locked(self, d: dict[str, Any]) -> None:
         payload = json.dumps(d, ensure_ascii=False, allow_nan=False).encode("utf-8")
         f = self._file()
-        f.write(_REC.pack(_TAG_LASR, len(payload)))
-        f.write(payload)
+        f.write(_REC.pack(_TAG_LASR, len(payload)) + payload)
         f.flush()
         self._flushed_wall = time.monotonic()
         self._decl[d["id"]] = d
@@ -237,10 +247,8 @@ class LaserLogWriter:
                     raise ValueError(f"laser {laser_id}: a scan needs beams and finite angles, got {n} beams from "
                                      f"{scan.angle_min_rad!r} by {scan.angle_increment_rad!r}")
                 self._declare_locked({**d, **geometry})
-            f.write(_REC.pack(_TAG_SCAN, _SCAN.size + 2 * n + len(tail)))
-            f.write(_SCAN.pack(laser_id, t, n))
-            f.write(ranges.tobytes())
-            f.write(tail)
+            f.write(_REC.pack(_TAG_SCAN, _SCAN.size + 2 * n + len(tail)) + _SCAN.pack(laser_id, t, n)
+                    + ranges.tobytes() + tail)
             self.scans_written += 1
             now = time.monotonic()
             if self._flushed_t is None:
@@ -254,12 +262,15 @@ class LaserLogWriter:
             self._file().flush()
             self._flushed_wall = time.monotonic()
 
-    def close(self) -> None:
-        """Flush and close; idempotent."""
+    def close(self) -> StreamedFile:
+        """Flush and close; idempotent. What is on the disk: its size, and ``partial`` when a write error
+        stopped the log (a log that never got a whole record is removed, ``size_bytes`` 0)."""
         with self._lock:
             f, self._f = self._f, None
         if f is not None:
-            f.close()
+            self.result = f.close()
+        assert self.result is not None
+        return self.result
 
 
 # ---- reading ------------------------------------------------------------------------------------------------

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import math
+import os
+import struct
+import warnings
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
 from ..link.state import LAYER_NAMES, REASON_NAMES, BehaviourState, PoseState, SonarState, flag_names
+from ..streamfile import StreamedFile, StreamFile
 
 __all__ = ["Recorder", "VizUnavailable", "require_rerun", "record_tlog", "RERUN_PIN"]
 
@@ -17,6 +21,40 @@ SONAR_HALF_CONE_RAD = math.radians(15.0)
 PATH_PIECE = 64  # points per logged piece of the driven path
 LAYER_COLOURS = {0: (128, 128, 128), 1: (220, 30, 30), 2: (240, 140, 0), 3: (160, 60, 200), 4: (40, 160, 220),
                  5: (40, 180, 80), 6: (30, 90, 220)}
+
+
+# rerun's stream (rerun-sdk 0.41): every read of a binary stream is a whole RRD stream of its own, a 12-byte
+# header ("RRF2", version, options), messages of a 16-byte header (kind, payload length: two uint64) and their
+# payload, an End message (kind 0, rerun's index of that piece) and a 32-byte footer ending in "RRF2FOOT" and a
+# uint32. The messages of one piece after another, behind one header, are one stream that rerun loads.
+_RRD_FOURCC = b"RRF2"
+_RRD_HEADER = 12
+_RRD_MSG = struct.Struct("<QQ")
+_RRD_FOOTER = 32
+_RRD_FOOTER_TAG = b"RRF2FOOT"
+
+
+def rrd_messages(piece: bytes) -> tuple[bytes, list[bytes]]:
+    """Split one read of rerun's binary stream into its stream header and its messages, each whole (without
+    the piece's End message and footer). ValueError when the bytes are not laid out so (another rerun)."""
+    if len(piece) < _RRD_HEADER or piece[:4] != _RRD_FOURCC:
+        raise ValueError(f"rerun's stream does not start with {_RRD_FOURCC!r}")
+    at, end = _RRD_HEADER, len(piece)
+    messages: list[bytes] = []
+    while at < end:
+        if at + _RRD_MSG.size > end:
+            raise ValueError(f"rerun's stream ends inside a message header at byte {at}")
+        kind, length = _RRD_MSG.unpack_from(piece, at)
+        if at + _RRD_MSG.size + length > end:
+            raise ValueError(f"rerun's message at byte {at} ({length} B) runs past the piece ({end} B)")
+        if kind == 0:  # End: its index, then the footer close the piece
+            tail = at + _RRD_MSG.size + length
+            if end - tail != _RRD_FOOTER or piece[end - 12:end - 4] != _RRD_FOOTER_TAG:
+                raise ValueError(f"rerun's stream has {end - tail} B after its End message, not its footer")
+            return piece[:_RRD_HEADER], messages
+        messages.append(piece[at:at + _RRD_MSG.size + length])
+        at += _RRD_MSG.size + length
+    return piece[:_RRD_HEADER], messages
 
 
 class VizUnavailable(RuntimeError):
@@ -52,6 +90,10 @@ class Recorder:
         self.rec = rec
         self.path = path
         self._stream: Any = None  # rerun's in-memory stream, written to ``path`` by close() (to_file)
+        self._out: StreamFile | None = None  # streaming_to: the file the stream's messages go to as they come
+        self._header = False  # streaming_to: the stream header is on its way to the file
+        self.app_id = "agnav"
+        self.result: StreamedFile | None = None  # streaming_to: what close() left on the disk
         self._path: list[list[float]] = []  # the driven path's current piece (PATH_PIECE points at most)
         self._piece = 0
         self._poses = 0
@@ -74,17 +116,27 @@ class Recorder:
         return r
 
     @classmethod
-    def streaming_to(cls, path: str | Path, app_id: str = "agnav") -> "Recorder":
-        """A recording streamed to ``path`` by rerun's file sink as it is logged (a robot run of hours is not
-        held in memory). The folder is checked writable first; a disk that fills during the run ends the
-        recording where it filled (rerun reports it on stderr), the run goes on."""
+    def streaming_to(cls, path: str | Path, app_id: str = "agnav",
+                     on_error: Callable[[str], None] | None = None) -> "Recorder":
+        """A recording streamed to ``path`` as it is logged (a robot run of hours is not held in memory): rerun
+        encodes into memory, and every :meth:`set_time` moves what it has encoded, whole messages, to the file
+        (a :class:`~agnav_host.streamfile.StreamFile`). Opening the file raises OSError. A disk that fills
+        during the run ends the recording on its last whole message, said once (a warning and ``on_error``),
+        and the run goes on; :meth:`close` then leaves the cut file (``result.partial``), which rerun loads
+        (``rerun.chunk.RrdReader(path).stream()``; it lacks rerun's index). A recording that ends whole is
+        rewritten at close with rerun's index (``rerun rrd verify`` passes), through a temporary file renamed
+        over it, when the disk has room for it (twice its size and 1 MiB); otherwise the streamed file stays."""
         rr = require_rerun()
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.open("wb").close()  # fail now, not during the run, when the folder cannot be written
+        out = StreamFile(p, "recording", on_error=on_error)  # fails now, not during the run, on a folder it cannot write
         rec = rr.RecordingStream(app_id)
-        rec.save(str(p))
-        return cls(rec, rr, None)
+        r = cls(rec, rr, None)
+        r.path = p
+        r.app_id = app_id
+        r._out = out
+        r._stream = rec.binary_stream()
+        return r
 
     @classmethod
     def spawn(cls, app_id: str = "agnav") -> "Recorder":
@@ -95,7 +147,27 @@ class Recorder:
         return cls(rec, rr)
 
     def set_time(self, t_s: float) -> None:
+        if self._out is not None:
+            self._pump(self._stream.read(flush=False))
         self.rec.set_time("time", duration=float(t_s))
+
+    def _pump(self, piece: bytes | None) -> None:
+        """One read of rerun's stream to the streamed file: each message a whole record (the first of the file
+        with the stream header)."""
+        out = self._out
+        if not piece or out is None or out.partial:
+            return
+        try:
+            header, messages = rrd_messages(bytes(piece))
+        except ValueError as e:
+            out.fail(OSError(f"{e} (rerun-sdk {getattr(self.rr, '__version__', '?')}, this recorder reads "
+                             f"{RERUN_PIN}'s)"))
+            return
+        if messages and not self._header:
+            self._header = True
+            messages[0] = header + messages[0]
+        for m in messages:
+            out.write(m)
 
     def log_pose(self, pose: PoseState) -> None:
         rr = self.rr
@@ -157,7 +229,8 @@ class Recorder:
 
     def close(self) -> None:
         """Flush and finish the recording; for a file recording, write it: OSError when it cannot be
-        written (no file is left then)."""
+        written (no file is left then). For a streamed one (:meth:`streaming_to`) ``result`` says what is on
+        the disk; a write error was already said when it happened."""
         try:
             self.rec.flush(timeout_sec=5.0)
         except TypeError:
@@ -166,6 +239,9 @@ class Recorder:
         disc = getattr(self.rec, "disconnect", None)
         if disc is not None:
             disc()
+        if self._out is not None:
+            self._close_stream(data)
+            return
         if self._stream is None or self.path is None:
             return
         data = (data or b"") + (self._stream.read(flush=False) or b"")  # the end of the stream, written by the disconnect
@@ -176,6 +252,41 @@ class Recorder:
         except OSError:
             self.path.unlink(missing_ok=True)
             raise
+
+
+    def _close_stream(self, data: bytes | None) -> None:
+        out = self._out
+        assert out is not None
+        self._pump(data)
+        self._pump(self._stream.read(flush=False))  # the end of the stream, written by the disconnect
+        self._stream = None
+        self._out = None
+        self.result = out.close()
+        if self.result.kept and not self.result.partial:
+            self._index(self.result.path)
+
+    def _index(self, path: Path) -> None:
+        """Rewrite a whole streamed recording with rerun's index, through a temporary file renamed over it; on
+        any failure the streamed file stays as it is (rerun loads it without the index)."""
+        import shutil
+
+        tmp = path.with_name(f".{path.name}.part")
+        try:
+            # the rewrite may come out larger than the stream; short of room rerun's writer fails noisily on
+            # stderr, so it is not tried
+            if shutil.disk_usage(path.parent).free < 2 * path.stat().st_size + (1 << 20):
+                return
+            from rerun.chunk import RrdReader
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # "no footer/manifest": the file is read whole, as streamed
+                store = RrdReader(path).stream().collect()
+            store.write_rrd(tmp, application_id=self.app_id, recording_id=str(self.rec.get_recording_id()))
+            os.replace(tmp, path)
+        except Exception:  # noqa: BLE001  (rerun's reader raises RuntimeError, the disk OSError: keep the stream)
+            tmp.unlink(missing_ok=True)
+            return
+        self.result = StreamedFile(path, path.stat().st_size, self.result.records if self.result else 0)
 
 
 def record_tlog(tlog: str | Path, rrd: str | Path) -> Path:
