@@ -243,9 +243,9 @@ def main(argv=None) -> int:
     say(f"target: worst period <= {TARGETS['period_ms']} ms with a key")
 
     prof_elf = build("megaatmega2560_profile")
-    names = ["task_control", "encoder_update", "encoder_snapshot", "health_encoders", "odom_update_diff",
+    names = ["control_task", "encoder_update", "encoder_snapshot", "health_encoders", "odom_update_diff",
              "behaviour_step", "drive_apply",
-             "task_telemetry_50hz", "task_telemetry", "task_link", "sonar_ring_step", "link_send"]
+             "telemetry_task_50hz", "telemetry_task", "task_link", "sonar_ring_step", "link_send"]
     _, perr, _ = run(prof_elf, min(args.seconds, 3.0), stim + symbol_addrs(prof_elf, names))
     say("")
     say("## Where the time goes (non-LTO build, cycles per call)")

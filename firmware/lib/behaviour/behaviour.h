@@ -13,7 +13,7 @@
  *
  * One limiter after every source: MAX_SPEED_MM_S / MAX_STEER_CDEG clamp the winning
  * proposal, whichever layer made it (host physical or raw PWM setpoints, whose outputs
- * main maps back through the calibration tables; manual override; the firmware's own
+ * the control task maps back through the calibration tables; manual override; the firmware's own
  * goal, wall and avoid layers).
  *
  * Failsafe hold: after any stop failsafe (e-stop, link loss, sensor fault, watchdog
@@ -131,7 +131,8 @@ extern uint8_t behaviour_boot_modes;
 extern const PARAMS_ROM param_group_t BEHAVIOUR_PARAM_GROUP; /* the rows, for main's PARAM_GROUPS */
 
 /* Everything the layers look at, filled once per tick by the modules that own the fields
- * (link_behaviour_inputs, odom_behaviour_inputs, the sonar frame task) and main (faults, time).
+ * (link_behaviour_inputs, odom_behaviour_inputs, the sonar frame task) and the control task
+ * (lib/control: faults, time).
  * A *_valid flag false means "never received". Times are hal_time_ms() values. */
 typedef struct behaviour_in_s {
     uint32_t now_ms;
@@ -192,7 +193,7 @@ void behaviour_set_params(const behaviour_params_t *params);
 /* One 50 Hz tick: evaluate the layers on *in, arbitrate, write *out. */
 void behaviour_step(const behaviour_in_t *in, behaviour_out_t *out);
 
-/* Optional, once per new ring frame (main's sonar task): work out the follow-wall sums of
+/* Optional, once per new ring frame (lib/control's sonar-frame task): work out the follow-wall sums of
  * the frame ahead of time, so the control tick does no per-sensor division. behaviour_step()
  * uses them while in->sonar.seq is that frame's seq and computes them itself otherwise; the
  * result is the same either way. The frame must not change afterwards without a new seq. */
@@ -207,7 +208,7 @@ void behaviour_arm(void);
 /* Last follow-wall obstacle extents l and r in 1/km (0 when no sonar). */
 void behaviour_wall_extents(uint32_t *l_per_km, uint32_t *r_per_km);
 
-/* Integer trigonometry (shared with tests and main):
+/* Integer trigonometry (shared with tests and telemetry):
  * cos/sin of an angle in cdeg (any value, wrapped), Q14 (16384 = 1.0),
  * 5-degree table with linear interpolation, |error| < 0.001. */
 int16_t behaviour_cos_q14(int32_t angle_cdeg);

@@ -1,7 +1,7 @@
 /*
  * Sensor health monitor: turns what the encoder and sonar front ends report into
- * latched fault bits, which main feeds to the behaviour failsafe (controlled stop) and
- * reports (STATUSTEXT once per new fault, NAMED_VALUE_INT "HEALTH" and SYS_STATUS health
+ * latched fault bits, which lib/control feeds to the behaviour failsafe (controlled stop) and
+ * lib/telemetry reports (STATUSTEXT once per new fault, NAMED_VALUE_INT "HEALTH" and SYS_STATUS health
  * bits). Pure logic: no HAL calls, time comes from the caller. docs/safety.md gives the
  * reasoning and the tests for each check.
  *

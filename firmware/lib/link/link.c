@@ -595,7 +595,7 @@ static void handle_param_request_read(const mavlink_message_t *m, uint32_t now_m
     }
 }
 
-/* AGNAV_CALIB_TABLE and AGNAV_CALIB_REQUEST: main's on_calib (the link keeps no copy), which answers
+/* AGNAV_CALIB_TABLE and AGNAV_CALIB_REQUEST: calib_service_on_msg (the link keeps no copy), which answers
  * each with an AGNAV_CALIB_ACK or the table; a broadcast is refused like any configuration message. */
 static void handle_calib(const mavlink_message_t *m, uint32_t now_ms)
 {

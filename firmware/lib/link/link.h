@@ -131,7 +131,7 @@ void link_init(const link_cfg_t *cfg);
 
 /* What the host asked for into the behaviour inputs (host setpoint, heartbeat, manual override,
  * e-stop, goal, enabled layers, the counts of each kind of command taken), every control tick. A raw
- * PWM setpoint's steer_cdeg / speed_mm_s go in as sent: main replaces them with what the raw outputs
+ * PWM setpoint's steer_cdeg / speed_mm_s go in as sent: the control task replaces them with what the raw outputs
  * amount to (drive_raw_physical), so that the layers and their limits see the real command. */
 struct behaviour_in_s;
 void link_behaviour_inputs(struct behaviour_in_s *in);
@@ -139,7 +139,7 @@ void link_behaviour_inputs(struct behaviour_in_s *in);
 /* Full-stick steering and speed of manual control (MAX_STEER_CDEG / MAX_SPEED_MM_S changed at run time). */
 void link_set_manual_limits(int16_t max_steer_cdeg, int16_t max_speed_mm_s);
 /* A received signed frame has waited more than one call because its hash did not fit before the
- * control tick: main's telemetry then skips its frame for a tick (never two ticks in a row) to
+ * control tick: telemetry_task() then skips its frame for a tick (never two ticks in a row) to
  * leave the link a longer window. */
 bool link_rx_waiting(void);
 /* Read and handle everything received so far. now_ms stamps what arrives. */

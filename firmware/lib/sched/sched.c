@@ -77,3 +77,9 @@ uint32_t sched_idle_us(uint32_t now_us)
     }
     return s_n == 0u ? 0u : best;
 }
+
+uint8_t sched_task_count(void) { return s_n; }
+
+const sched_task_t *sched_task(uint8_t i) { return &s_tasks[i]; }
+
+const sched_stats_t *sched_task_stats(uint8_t i) { return &s_stats[i]; }

@@ -51,6 +51,12 @@ uint8_t sched_run(uint32_t now_us);
 /* Microseconds until the earliest next due time (0 if something is due). */
 uint32_t sched_idle_us(uint32_t now_us);
 
+/* The rows sched_init() kept (0 before it), row i of the table and its stats (i < that count),
+ * for status reports. */
+uint8_t sched_task_count(void);
+const sched_task_t *sched_task(uint8_t i);
+const sched_stats_t *sched_task_stats(uint8_t i);
+
 #ifdef __cplusplus
 }
 #endif

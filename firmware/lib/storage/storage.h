@@ -15,8 +15,8 @@
  * bytes are read from the owning module as the writer reaches them: a value changed during a save
  * lands in the record or not, and the CRC matches what was written either way.
  *
- * The application wires the records (storage_record_slots, storage_record_byte; main.c), so this
- * module links none of their owners. EEPROM map (addresses in the owning modules' headers):
+ * The application wires the records (storage_record_slots, storage_record_byte; lib/storage_records),
+ * so this module links none of their owners. EEPROM map (addresses in the owning modules' headers):
  *   0x0040  signing key record        36 B   copy 0x00B0
  *   0x0070  signing timestamp ring    64 B   (8 slots, written by signing.c itself, a byte at a time)
  *   0x0100  calibration tables       212 B   copy 0x0400

@@ -176,6 +176,22 @@ void test_sched_idle_us_reports_time_to_next_due(void)
     TEST_ASSERT_EQUAL_UINT32(15000u, sched_idle_us(hal_time_us()));
 }
 
+/* What telemetry's "T_<task>" round robin reads: the rows sched_init() kept and each one's stats. */
+void test_sched_reports_the_rows_it_runs_and_their_stats(void)
+{
+    static sched_stats_t ls[2];
+    sched_init(LOAD, 2u, ls);
+    TEST_ASSERT_EQUAL_UINT8(2u, sched_task_count());
+    TEST_ASSERT_EQUAL_PTR(&LOAD[1], sched_task(1u));
+    TEST_ASSERT_EQUAL_STRING("heavy", sched_task(0u)->name);
+    loop_for(100000UL);
+    TEST_ASSERT_EQUAL_PTR(&ls[0], sched_task_stats(0u));
+    TEST_ASSERT_EQUAL_UINT32(3000u, sched_task_stats(0u)->worst_us);
+    TEST_ASSERT_EQUAL_UINT32(500u, sched_task_stats(1u)->worst_us);
+    sched_init(0, 3u, stats); /* no table: nothing to run or report */
+    TEST_ASSERT_EQUAL_UINT8(0u, sched_task_count());
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -185,5 +201,6 @@ int main(void)
     RUN_TEST(test_sched_run_keeps_rates_across_timer_wrap);
     RUN_TEST(test_sched_run_runs_due_tasks_in_table_order);
     RUN_TEST(test_sched_idle_us_reports_time_to_next_due);
+    RUN_TEST(test_sched_reports_the_rows_it_runs_and_their_stats);
     return UNITY_END();
 }
