@@ -189,7 +189,10 @@ def field_from(ns: argparse.Namespace, cfg: Any) -> Any:
                             row_offset_m=ns.row_offset if ns.row_offset is not None else f.row_offset_m,
                             row_half_width_m=ns.row_half_width if ns.row_half_width is not None else f.row_half_width_m,
                             row_method=ns.row_method or f.row_method, first_turn=side, lanes_per_turn=lanes,
-                            pattern=getattr(ns, "pattern", None) or "")
+                            pattern=getattr(ns, "pattern", None) or f.pattern,
+                            row_spacing_m=(ns.row_spacing if getattr(ns, "row_spacing", None) is not None
+                                           else f.row_spacing_m),
+                            reverse=f.reverse and not getattr(ns, "no_reverse", False))
 
 
 def robot_spec_from(params: dict[str, float], cfg: Any, control_dt_s: float) -> Any:
@@ -660,7 +663,13 @@ subcommand("run", help="drive a robot (or a SIL over tcp:) with any controller, 
                (("--pattern",), {"default": None, "metavar": "S-1L-2R-F",
                                  "help": "field: the row navigator's turn pattern in the Field Robot Event's notation "
                                          "(S start, nL / nR the n-th lane to the left / right, F finish: stop), "
-                                         "instead of --turns"}),
+                                         "instead of --turns (default: [field] pattern)"}),
+               (("--row-spacing",), {"dest": "row_spacing", "type": positive_float, "default": None, "metavar": "M",
+                                     "help": "field: the rows' spacing the row navigator turns by, m, 0.2-10 (default: "
+                                             "[field] row_spacing_m, 0.75)"}),
+               (("--no-reverse",), {"dest": "no_reverse", "action": "store_true",
+                                    "help": "field: the row navigator never backs up on the headland (default: "
+                                            "[field] reverse)"}),
                (("--landmarks",), {"default": None, "metavar": "FILE",
                                    "help": "surveyed marker posts to localise on, CSV x_m,y_m,radius_m (default: [run] "
                                            "landmarks_file; none = odometry)"}),

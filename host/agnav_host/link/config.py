@@ -94,6 +94,9 @@ class FieldConfig:
     row_half_width_m: float = 0.0      # row centre line to the face the laser sees, m
     row_method: str = "ransac"         # row detection: ransac, lsq, offset, triangle, hough
     turns: str = "left,1"              # headland turn pattern SIDE[,N]: first turn side, lanes per turn
+    pattern: str = ""                  # row navigator: turn pattern in the Field Robot Event's notation (S-1L-2R-F)
+    row_spacing_m: float = 0.75        # row navigator: the rows' spacing, m
+    reverse: bool = True               # row navigator: may back up on the headland
 
 
 @dataclass
@@ -264,6 +267,16 @@ def _laser_url(v: Any) -> str | None:
     return None
 
 
+def _pattern(v: Any) -> str | None:
+    from ..planning.row_navigator import PatternError, parse_pattern
+
+    try:
+        parse_pattern(v)
+    except PatternError as e:
+        return str(e)
+    return None
+
+
 def _turns(v: Any) -> str | None:
     from ..planning.registry import parse_turn_pattern
 
@@ -304,6 +317,9 @@ RULES: dict[str, dict[str, Check]] = {
         "row_side": _one_of("left", "right"), "row_offset_m": lambda v: None if math.isfinite(v) and v >= 0.05 else
         f"must be >= 0.05 m, got {v!r}", "row_half_width_m": _nonneg,
         "row_method": _one_of("offset", "lsq", "triangle", "ransac", "hough"), "turns": _turns,
+        "pattern": lambda v: None if not v else _pattern(v),
+        "row_spacing_m": lambda v: None if math.isfinite(v) and 0.2 <= v <= 10.0 else
+        f"must be a number 0.2-10 m, got {v!r}",
     },
     "laser": _LASER_RULES,
     "tilted_laser": _LASER_RULES,

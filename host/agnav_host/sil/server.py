@@ -135,6 +135,7 @@ def host_config_text(sc: Scenario, scanners: list[_EmulatedScanner], device: str
     f = field_from_meta(sc)
     cfg.field.row_side, cfg.field.row_offset_m, cfg.field.row_half_width_m = f.row_side, f.row_offset_m, f.row_half_width_m
     cfg.field.row_method, cfg.field.turns = f.row_method, f"{f.first_turn},{f.lanes_per_turn}"
+    cfg.field.pattern, cfg.field.row_spacing_m, cfg.field.reverse = f.pattern, f.row_spacing_m, f.reverse
     for sc_ in scanners:
         sec = cfg.laser if sc_.role == "laser" else cfg.tilted_laser
         sec.url = sc_.url().split("?")[0]
