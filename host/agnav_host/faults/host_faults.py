@@ -216,6 +216,52 @@ def _case_disk_full_tlog() -> FaultOutcome:
                             f"in the next 1.5 s); {kept} frames readable in the file", ok)
 
 
+def _case_disk_full_run() -> FaultOutcome:
+    """`agnav run --out` on a full disk while it streams the trajectory, the localisation, the laser log and the
+    recording: the run drives to its end, each file left ends on a whole record, a cut one is listed as partial
+    with its size, none is empty."""
+    import re
+
+    import numpy as np
+
+    from ..lasers.base import LaserMount
+    from ..lasers.log import LaserLogWriter, laser_log_info
+    from ..link.fake import FakeRobot
+    from ..types import LaserScan
+
+    with tempfile.TemporaryDirectory(prefix="agnav-scans-") as sd:
+        log = Path(sd) / "scans.alog"
+        rng = np.random.default_rng(0)
+        with LaserLogWriter(log) as w:  # open ground, a wall 8 m off, 15 scans a second
+            first = LaserScan(-1.0, 0.01, 8.0 + 0.01 * rng.standard_normal(201), 10.0, 0.0)
+            w.declare(0, "tim5xx://fault", "tim5xx", "TiM561", LaserMount(0.2), first, "device", 0.0)
+            for k in range(60):
+                w.write(0, LaserScan(-1.0, 0.01, 8.0 + 0.01 * rng.standard_normal(201), 10.0, k / 15.0), k / 15.0, None)
+        with full_disk(64) as (d, how), FakeRobot() as robot:
+            out = d / "run"
+            pre = _fsize_limit(24 * 1024) if how == "rlimit" else None
+            p = _agnav("run", "--device", robot.device, "--laser", f"replay:{log}?x=0.2", "--planner", "him",
+                       "--localise", "scan", "--goal", "3,0", "--duration", "2", "--out", str(out), "--no-plot",
+                       preexec=pre, timeout=90.0)
+            sps = robot.received_of("AGNAV_DRIVE_SETPOINT")
+            partial = {Path(k).name: int(v) for k, v in re.findall(r"wrote (\S+) partial \((\d+) B\)", p.stdout)}
+            files = {f.name: f.stat().st_size for f in out.glob("*")} if out.is_dir() else {}
+            bad = [n for n, size in files.items() if size == 0]
+            bad += [n for n, size in partial.items() if files.get(n) != size]
+            for name in ("trajectory.csv", "localisation.csv"):
+                if name in files and not (out / name).read_bytes().endswith(b"\n"):
+                    bad.append(f"{name} cut mid-line")
+            if "laser.alog" in files and laser_log_info(out / "laser.alog").truncated_bytes:
+                bad.append("laser.alog cut mid-record")
+            clean = "Traceback" not in p.stderr
+            ended = "duration reached" in p.stdout and bool(sps) and sps[-1].speed_mm_s == 0
+            ok = clean and ended and bool(partial) and not bad
+            cut = ", ".join(f"{n} {v} B" for n, v in sorted(partial.items())) or "none"
+            return FaultOutcome(f"({how}) exit {p.returncode}, {'drove to its end, stopped' if ended else 'DID NOT END'}; "
+                                f"partial: {cut}; {len(files)} files, {len(bad)} bad" + (f" ({', '.join(bad)})" if bad else ""),
+                                ok)
+
+
 # ---- serial cable pulled -----------------------------------------------------------------------------
 class _PtyBridge:
     """/dev/pts/N <-> TCP: a serial port whose far end is the fake robot."""
@@ -356,4 +402,7 @@ HOST_CASES = (
               "error reported once, the link keeps running, the log keeps what was flushed before the disk filled "
               "(at most the last 1 s buffer is lost)",
               _case_disk_full_tlog),
+    FaultCase("disk full while `agnav run --out` streams its files", "host",
+              "the run drives to its end and stops the robot; each file left ends on a whole record, a cut one listed as "
+              "partial with its size, no empty file", _case_disk_full_run),
 )
