@@ -255,36 +255,32 @@ def _finite(v: Any) -> str | None:
     return None if math.isfinite(v) else f"must be a finite number, got {v!r}"
 
 
+def _refusal(parse: Callable[[Any], object], error: type[Exception], v: Any) -> str | None:
+    """Why ``parse(v)`` refuses ``v`` (its ``error``'s message), or None when it takes it."""
+    try:
+        parse(v)
+    except error as e:
+        return str(e)
+    return None
+
+
 def _laser_url(v: Any) -> str | None:
-    if not v:
-        return None
     from ..lasers import LaserUrlError, parse_laser_url
 
-    try:
-        parse_laser_url(v)
-    except LaserUrlError as e:
-        return str(e).replace("--laser ", "", 1)
-    return None
+    why = _refusal(parse_laser_url, LaserUrlError, v) if v else None
+    return why.replace("--laser ", "", 1) if why else None
 
 
 def _pattern(v: Any) -> str | None:
     from ..planning.row_navigator import PatternError, parse_pattern
 
-    try:
-        parse_pattern(v)
-    except PatternError as e:
-        return str(e)
-    return None
+    return _refusal(parse_pattern, PatternError, v)
 
 
 def _turns(v: Any) -> str | None:
     from ..planning.registry import parse_turn_pattern
 
-    try:
-        parse_turn_pattern(v)
-    except ValueError as e:
-        return str(e)
-    return None
+    return _refusal(parse_turn_pattern, ValueError, v)
 
 
 _LASER_RULES: dict[str, Check] = {"url": _laser_url, "x_m": _finite, "y_m": _finite, "yaw_deg": _finite,
