@@ -104,7 +104,10 @@ def test_frames_dropped_on_a_dead_link_are_not_logged_as_sent(tmp_path):
     with FakeRobot() as fr:
         ep = Endpoint(fr.device, tlog=tlog).start(wait_heartbeat_s=3.0)
         r = AgnavRobot(ep)
-        ep._broken = True  # the transport has failed; the I/O thread has not reopened it yet
+        # The transport has failed and the I/O thread will not reopen it during the test.
+        ep.reconnect_delay_s = 60.0
+        ep._next_open = time.monotonic() + 60.0
+        ep._broken = True
         ep._conn = None
         sent = [r.drive(0.0, 0.3) for _ in range(20)]
         ep.close()
