@@ -9,13 +9,13 @@ where it reverses. :mod:`._plan` times each and keeps the one that meets the arr
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from ...types import FloatArray, norm_angle_rad
 from ._families import ALL_WORDS, CSC_WORDS, FamilyPath, Seg, cc_paths, dubins_paths, reeds_shepp_paths, sample_segments, seg_end, turning_rad, word_of
-from ._path import GeoPath, build_path
+from ._path import GeoPath, build_path, leg_kappa_floor
 from ._poly import BoundaryState
 
 if TYPE_CHECKING:
@@ -74,9 +74,15 @@ def _poly_cap(path: GeoPath, lim: "TimedLimits") -> float:
     return math.inf if rate < 1e-12 else lim.steer_rate_rad_s / rate
 
 
-def poly_candidate(states: list[BoundaryState], lim: "TimedLimits") -> tuple[GeoPath | None, str]:
-    """The ref-003 polynomial path through ``states`` when it fits the steering limit (None and why not)."""
+def poly_candidate(states: list[BoundaryState], lim: "TimedLimits", quick: bool = False) -> tuple[GeoPath | None, str]:
+    """The ref-003 polynomial path through ``states`` when it fits the steering limit (None and why not).
+    ``quick`` (one leg): a leg whose shape alone already needs more steering than the limit is refused before
+    it is sampled (:func:`~._path.leg_kappa_floor`; the same verdict, a shorter reason)."""
     try:
+        if quick and len(states) == 2:
+            floor = leg_kappa_floor(states[0], states[1], lim.wheelbase_m) * (1.0 - 1e-9)
+            if math.atan(lim.wheelbase_m * floor) > lim.plan_steer_rad + 1e-6:
+                return None, (f"the polynomial needs more than {math.degrees(lim.plan_steer_rad):.1f} deg of steering")
         p = build_path(states, lim.wheelbase_m)
     except ValueError as e:
         return None, str(e)
@@ -90,21 +96,42 @@ def poly_candidate(states: list[BoundaryState], lim: "TimedLimits") -> tuple[Geo
     return GeoPath(p.xy, p.yaw, p.kappa, p.s, p.forms, p.knots_s, "polynomial " + "/".join(p.forms), None, (), cap), ""
 
 
+#: end clothoids already integrated ((kind, x, y, th, k, sigma) -> result): the candidates of one replanning
+#: call all start from the same state, at the same few sharpnesses; cleared when full
+_END_CLOTHOIDS: dict[tuple[object, ...], tuple[Seg | None, tuple[float, float, float]]] = {}
+
+
 def _unwind(x: float, y: float, th: float, k: float, sigma: float) -> tuple[Seg | None, tuple[float, float, float]]:
     """A clothoid from curvature k back to 0 (sharpness sigma) from (x, y, th), and the pose after it."""
     if abs(k) < 1e-9:
         return None, (x, y, th)
-    seg = Seg(abs(k) / sigma, k, -math.copysign(sigma, k))
-    return seg, seg_end(x, y, th, seg)
+    key = ("out", x, y, th, k, sigma)
+    hit = _END_CLOTHOIDS.get(key)
+    if hit is None:
+        seg = Seg(abs(k) / sigma, k, -math.copysign(sigma, k))
+        hit = seg, seg_end(x, y, th, seg)
+        _remember(key, hit)
+    return hit
 
 
 def _wind_in(x: float, y: float, th: float, k: float, sigma: float) -> tuple[Seg | None, tuple[float, float, float]]:
     """A clothoid from 0 up to curvature k that ends at (x, y, th), and the pose where it starts."""
     if abs(k) < 1e-9:
         return None, (x, y, th)
-    seg = Seg(abs(k) / sigma, k, -math.copysign(sigma, k), -1)  # driven backwards from the end: k back to 0
-    bx, by, bth = seg_end(x, y, th, seg)
-    return Seg(abs(k) / sigma, 0.0, math.copysign(sigma, k)), (bx, by, bth)
+    key = ("in", x, y, th, k, sigma)
+    hit = _END_CLOTHOIDS.get(key)
+    if hit is None:
+        seg = Seg(abs(k) / sigma, k, -math.copysign(sigma, k), -1)  # driven backwards from the end: k back to 0
+        bx, by, bth = seg_end(x, y, th, seg)
+        hit = Seg(abs(k) / sigma, 0.0, math.copysign(sigma, k)), (bx, by, bth)
+        _remember(key, hit)
+    return hit
+
+
+def _remember(key: tuple[object, ...], value: tuple[Seg | None, tuple[float, float, float]]) -> None:
+    if len(_END_CLOTHOIDS) >= 32:
+        _END_CLOTHOIDS.clear()
+    _END_CLOTHOIDS[key] = value
 
 
 def cc_family(a: BoundaryState, b: BoundaryState, lim: "TimedLimits", v_cap_m_s: float, run_in: bool = True,
@@ -124,7 +151,11 @@ def cc_family(a: BoundaryState, b: BoundaryState, lim: "TimedLimits", v_cap_m_s:
     last: tuple[Seg, ...] = ((tail,) if tail else ()) + ((Seg(run, 0.0),) if run > 0 else ())
     out = []
     words = ALL_WORDS if math.isinf(max_turn_rad) else CSC_WORDS  # no loop: the three-turn words are left out
-    for fp in cc_paths(p0, p1, kmax, sigma, prune_m=PRUNE_M, words=words):
+    # the clothoids winding the steering out and in turn k^2 / (2 sigma) each (as turning_rad counts them)
+    extra = sum(abs(0.5 * (g.k0 + g.k1)) * g.length_m for g in (head, tail) if g is not None)
+    for fp in cc_paths(p0, p1, kmax, sigma, prune_m=PRUNE_M, words=words, max_turn_rad=max_turn_rad, turn_extra_rad=extra):
+        if turning_rad(fp) + extra > max_turn_rad + 1e-9:
+            continue  # a loop for certain (the sum below only adds the same terms in another order)
         segs = ((head,) if head else ()) + fp.segs + last
         f = FamilyPath(fp.family, fp.word, segs, (a.x_m, a.y_m, a.yaw_rad))
         if turning_rad(f) <= max_turn_rad:
@@ -172,12 +203,24 @@ def reeds_shepp_candidates(a: BoundaryState, b: BoundaryState, lim: "TimedLimits
     return out
 
 
-def via_candidate(states: list[BoundaryState], lim: "TimedLimits", v_cap_m_s: float) -> GeoPath | None:
-    """A path through every state: per leg the polynomial when it fits, else the shortest continuous-curvature
-    leg; None when a leg has neither."""
-    whole, _ = poly_candidate(states, lim)
-    if whole is not None:
-        return whole
+def via_candidate(states: list[BoundaryState], lim: "TimedLimits", v_cap_m_s: float,
+                  reject_prefix: Callable[[GeoPath], bool] | None = None) -> GeoPath | None:
+    """A path through every state: the polynomial through all of them when it fits, else per leg the
+    polynomial when it fits, else the shortest continuous-curvature leg; None when a leg has neither.
+
+    The first leg's polynomial is built first (legs are cached, :func:`~._path.build_path`): when it does not
+    fit, neither does the polynomial through all the states (its samples are among theirs), and the legs after
+    it are built only when the first has a continuous-curvature path (a leg with neither ends the work).
+    ``reject_prefix``: None is returned as soon as it says True of the first leg (a path that begins so is
+    of no use to the caller: a deviation whose first leg runs into a static return)."""
+    n_legs = len(states) - 1
+    first, _ = poly_candidate(states[:2], lim, quick=True)
+    if first is not None and reject_prefix is not None and reject_prefix(first):
+        return None
+    if first is not None:
+        whole, _ = poly_candidate(states, lim) if n_legs > 1 else (first, "")
+        if whole is not None:
+            return whole
     xs: list[FloatArray] = []
     yaws: list[FloatArray] = []
     ks: list[FloatArray] = []
@@ -186,16 +229,17 @@ def via_candidate(states: list[BoundaryState], lim: "TimedLimits", v_cap_m_s: fl
     knots, kinds = [0.0], []
     cap = math.inf
     s_off = 0.0
-    n_legs = len(states) - 1
     for i, (a, b) in enumerate(zip(states[:-1], states[1:])):
-        leg, _ = poly_candidate([a, b], lim)
+        leg = first if i == 0 else poly_candidate([a, b], lim, quick=True)[0]
         # else continuous curvature, sharper (slower) clothoids where the gentle ones do not fit; the
         # straight run-in only into the goal
-        for cap in (v_cap_m_s,) + tuple(c for c in VIA_LEG_CAPS_M_S if lim.v_min_m_s < c < v_cap_m_s):
+        for leg_cap in (v_cap_m_s,) + tuple(c for c in VIA_LEG_CAPS_M_S if lim.v_min_m_s < c < v_cap_m_s):
             if leg is not None:
                 break
-            leg = cc_candidate(a, b, lim, cap, run_in=i == n_legs - 1, max_turn_rad=NO_LOOP_TURN_RAD)
+            leg = cc_candidate(a, b, lim, leg_cap, run_in=i == n_legs - 1, max_turn_rad=NO_LOOP_TURN_RAD)
         if leg is None:
+            return None
+        if i == 0 and first is None and reject_prefix is not None and reject_prefix(leg):
             return None
         kinds.append(leg.kind.split(" ")[0])
         cap = min(cap, leg.speed_cap_m_s)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Callable
 
 import numpy as np
 from scipy.special import fresnel
@@ -216,12 +217,20 @@ def _rot(x: float, y: float, a: float) -> tuple[float, float]:
 # ---- CSC and CCC words ------------------------------------------------------------------------------------
 
 
-def _csc_closed(word: str, gx: float, gy: float, gth: float, kmax: float, sigma: float) -> tuple[float, float, float] | None:
-    """(delta1, straight, delta2) of a CSC word from the outer circles (exact when both turns reach full
-    curvature, and for Dubins); start at the origin heading 0."""
+@lru_cache(maxsize=64)
+def _csc_consts(kmax: float, sigma: float) -> tuple[float, float, float, float, float]:
+    """(x_O, y_O, 2 R sin mu, 4 R^2 cos^2 mu, 2 R cos mu) of the outer circles (radius R, angle mu) for
+    :func:`_csc_closed`, computed as it would."""
     _, _, _, xo, yo, _ = _turn_consts(kmax, sigma)
     R = math.hypot(xo, yo)
     mu = math.atan2(xo, yo)
+    return xo, yo, 2.0 * R * math.sin(mu), 4.0 * R * R * math.cos(mu) ** 2, 2.0 * R * math.cos(mu)
+
+
+def _csc_closed(word: str, gx: float, gy: float, gth: float, kmax: float, sigma: float) -> tuple[float, float, float] | None:
+    """(delta1, straight, delta2) of a CSC word from the outer circles (exact when both turns reach full
+    curvature, and for Dubins); start at the origin heading 0."""
+    xo, yo, r_sin2, r2_cos4, r_cos2 = _csc_consts(kmax, sigma)
     a, b = (1 if word[0] == "L" else -1), (1 if word[2] == "L" else -1)
     osx, osy = xo, a * yo
     ogx, ogy = _rot(-xo, b * yo, gth)
@@ -231,14 +240,14 @@ def _csc_closed(word: str, gx: float, gy: float, gth: float, kmax: float, sigma:
     D = math.hypot(dx, dy)
     thc = math.atan2(dy, dx)
     if a == b:
-        ell = D - 2.0 * R * math.sin(mu)
+        ell = D - r_sin2
         th = thc
     else:
-        q = D * D - 4.0 * R * R * math.cos(mu) ** 2
+        q = D * D - r2_cos4
         if q < 0.0:
             return None
-        ell = math.sqrt(q) - 2.0 * R * math.sin(mu)
-        th = thc + a * math.atan2(2.0 * R * math.cos(mu), ell + 2.0 * R * math.sin(mu))
+        ell = math.sqrt(q) - r_sin2
+        th = thc + a * math.atan2(r_cos2, ell + r_sin2)
     if ell < -1e-9:
         return None
     return _mod2pi(a * th), max(ell, 0.0), _mod2pi(b * (gth - th))
@@ -246,33 +255,90 @@ def _csc_closed(word: str, gx: float, gy: float, gth: float, kmax: float, sigma:
 
 def _csc_residual(d1: float, a: int, b: int, gx: float, gy: float, gth: float, kmax: float, sigma: float) -> tuple[float, float, float]:
     """(cross, straight, delta2) for a CSC word with first deflection d1 (the root of cross is the path)."""
-    h1 = a * d1
-    ex, ey = _turn_end(d1, kmax, sigma)
-    d2 = _mod2pi(b * (gth - h1))
-    fx, fy = _turn_end(d2, kmax, sigma)
-    fx, fy = _rot(fx, b * fy, h1)
-    rx, ry = gx - ex - fx, gy - a * ey - fy
-    c, s = math.cos(h1), math.sin(h1)
-    return c * ry - s * rx, c * rx + s * ry, d2
+    return _csc_residual_fn(a, b, gx, gy, gth, kmax, sigma)(d1)
+
+
+def _csc_residual_fn(a: int, b: int, gx: float, gy: float, gth: float, kmax: float,
+                     sigma: float) -> Callable[[float], tuple[float, float, float]]:
+    """:func:`_csc_residual` as a function of d1 alone, with the turn constants looked up once and
+    :func:`_turn_end` and :func:`_rot` written out (the same arithmetic: a Newton solve calls it dozens of times)."""
+    _, _, _, xo, yo, dmin = _turn_consts(kmax, sigma)
+    fa = math.sqrt(math.pi / sigma) if not math.isinf(sigma) else 0.0
+    sin, cos, sqrt, fmod, pi = math.sin, math.cos, math.sqrt, math.fmod, math.pi
+
+    def turn_end(delta: float) -> tuple[float, float]:
+        if delta <= 0.0:
+            return 0.0, 0.0
+        h = 0.5 * delta
+        if delta >= dmin:
+            mx, my = xo + sin(h) / kmax, yo - cos(h) / kmax
+        else:  # two clothoids meeting at sqrt(sigma * delta)
+            S, C = fresnel(sqrt(delta / pi))
+            mx, my = fa * float(C), fa * float(S)
+        c, s = cos(h), sin(h)
+        m = 2.0 * (mx * c + my * s)
+        return m * c, m * s
+
+    def resid(d1: float) -> tuple[float, float, float]:
+        h1 = a * d1
+        ex, ey = turn_end(d1)
+        r = fmod(b * (gth - h1), TWO_PI)
+        d2 = r + TWO_PI if r < 0.0 else r
+        fx, fy = turn_end(d2)
+        fy = b * fy
+        c, s = cos(h1), sin(h1)
+        fx, fy = c * fx - s * fy, s * fx + c * fy
+        rx, ry = gx - ex - fx, gy - a * ey - fy
+        return c * ry - s * rx, c * rx + s * ry, d2
+
+    return resid
+
+
+#: Newton steps in a row that do not halve the residual before a guess is given up (:func:`_csc_numeric`)
+NEWTON_STALL_STEPS = 2
 
 
 def _csc_numeric(word: str, gx: float, gy: float, gth: float, kmax: float, sigma: float,
                  guesses: tuple[float, ...]) -> tuple[float, float, float] | None:
+    """Newton on the first deflection of a CSC word from each guess in turn (16 steps at most, each at most
+    0.5 rad, d1 kept in [0, 2 pi)); the first root with a straight of length >= 0, else None.
+
+    A guess is given up early when its steps stop converging: a step that leaves d1 where it is (held at a
+    bound; it would repeat itself to the end), or :data:`NEWTON_STALL_STEPS` steps in a row that do not halve
+    the residual (Newton bouncing round a minimum of |cross| above 0, where the word has no root: the
+    roots it finds it reaches halving the residual at every step, measured on the benchmark's solves)."""
     a, b = (1 if word[0] == "L" else -1), (1 if word[2] == "L" else -1)
+    resid = _csc_residual_fn(a, b, gx, gy, gth, kmax, sigma)
+    eps = 1e-7
+    top = TWO_PI - 1e-9
     for g in guesses:
-        d1 = min(max(g, 0.0), TWO_PI - 1e-9)
+        d1 = min(max(g, 0.0), top)
+        at_d1 = None  # the residual at the current d1 when known
+        best = math.inf
+        stall = 0
         for _ in range(16):
-            f, ell, d2 = _csc_residual(d1, a, b, gx, gy, gth, kmax, sigma)
+            res = resid(d1)
+            at_d1 = res
+            f = res[0]
             if abs(f) < 1e-10:
                 break
-            eps = 1e-7
-            f2, _, _ = _csc_residual(d1 + eps, a, b, gx, gy, gth, kmax, sigma)
+            if abs(f) < 0.5 * best:
+                best, stall = abs(f), 0
+            else:
+                stall += 1
+                if stall >= NEWTON_STALL_STEPS:
+                    break
+            f2 = resid(d1 + eps)[0]
             df = (f2 - f) / eps
             if df == 0.0 or not math.isfinite(df):
                 break
             step = max(-0.5, min(0.5, f / df))
-            d1 = min(max(d1 - step, 0.0), TWO_PI - 1e-9)
-        f, ell, d2 = _csc_residual(d1, a, b, gx, gy, gth, kmax, sigma)
+            nd = min(max(d1 - step, 0.0), top)
+            if nd == d1:
+                break
+            d1 = nd
+            at_d1 = None
+        f, ell, d2 = resid(d1) if at_d1 is None else at_d1
         if abs(f) < 1e-8 and ell >= -1e-9:
             return d1, max(ell, 0.0), d2
     return None
@@ -401,20 +467,75 @@ CSC_WORDS = ALL_WORDS[:4]
 
 
 def cc_paths(start: tuple[float, float, float], goal: tuple[float, float, float], kmax: float, sigma: float,
-             prune_m: float | None = None, words: tuple[str, ...] = ALL_WORDS) -> list[FamilyPath]:
+             prune_m: float | None = None, words: tuple[str, ...] = ALL_WORDS, max_turn_rad: float = math.inf,
+             turn_extra_rad: float = 0.0) -> list[FamilyPath]:
     """Every continuous-curvature path (CC turns of sharpness ``sigma``, curvature <= kmax, straight at both
     ends) of the CSC and CCC words from ``start`` to ``goal``. ``prune_m``: only the words whose Dubins
     path is within that of the shortest (a CC path runs a little outside its Dubins path, so the shortest
-    CC path is one of them); all ``words`` when none of those has a CC path."""
+    CC path is one of them); all ``words`` when none of those has a CC path.
+
+    ``max_turn_rad``: the caller keeps only paths that turn at most this much in all, ``turn_extra_rad`` of it
+    being turned before and after these paths (the clothoids that wind a steering angle out and in). An LSL
+    path turns mod2pi(goal heading - start heading) or 2 pi more, an RSR path mod2pi(start - goal) or more,
+    so where that alone is too much the word is not solved for a path, only (when that decides whether
+    the other words are tried) for whether it has one: the answer is the same, the work is not."""
+    loops = _looping_words(goal[2] - start[2], words, max_turn_rad - turn_extra_rad)
     if prune_m is not None:
-        dub = _words(start, goal, kmax, math.inf, "dubins", words)
+        dub = _dubins_lengths(start, goal, kmax, words)
         if dub:
-            best = min(p.length_m for p in dub)
-            keep = tuple(dict.fromkeys(p.word for p in dub if p.length_m <= best + prune_m))
-            out = _words(start, goal, kmax, sigma, "clothoid", keep)
-            if out:
+            best = min(length for _, length in dub)
+            keep = tuple(dict.fromkeys(w for w, length in dub if length <= best + prune_m))
+            out = _words(start, goal, kmax, sigma, "clothoid", tuple(w for w in keep if w not in loops))
+            if out or any(_csc_exists(w, start, goal, kmax, sigma) for w in keep if w in loops):
                 return out
-    return _words(start, goal, kmax, sigma, "clothoid", words)
+    return _words(start, goal, kmax, sigma, "clothoid", tuple(w for w in words if w not in loops))
+
+
+def _looping_words(gth: float, words: tuple[str, ...], max_turn_rad: float) -> tuple[str, ...]:
+    """The LSL / RSR among ``words`` whose every path turns more than ``max_turn_rad`` (heading change ``gth``):
+    the two turns of LSL add up to mod2pi(gth) or that plus 2 pi, those of RSR to mod2pi(-gth) or more."""
+    if math.isinf(max_turn_rad):
+        return ()
+    out = []
+    if "LSL" in words and _mod2pi(gth) > max_turn_rad + 1e-9:
+        out.append("LSL")
+    if "RSR" in words and _mod2pi(-gth) > max_turn_rad + 1e-9:
+        out.append("RSR")
+    return tuple(out)
+
+
+def _csc_exists(word: str, start: tuple[float, float, float], goal: tuple[float, float, float], kmax: float,
+                sigma: float) -> bool:
+    """Whether :func:`_words` finds a path of the CSC ``word`` (the same closed form, then the same Newton)."""
+    gx, gy, gth = _to_frame(start, goal)
+    sol = _csc_closed(word, gx, gy, gth, kmax, sigma)
+    if not math.isinf(sigma) and (sol is None or min(sol[0], sol[2]) < _turn_consts(kmax, sigma)[5] - 1e-12):
+        guesses = (sol[0],) if sol is not None else ()
+        sol = _csc_numeric(word, gx, gy, gth, kmax, sigma, guesses + (1e-3, math.pi))
+    return sol is not None
+
+
+def _dubins_lengths(start: tuple[float, float, float], goal: tuple[float, float, float], kmax: float,
+                    words: tuple[str, ...]) -> list[tuple[str, float]]:
+    """(word, length) of every Dubins path of ``words``, in the order of :func:`dubins_paths`, with the
+    lengths summed as :attr:`FamilyPath.length_m` sums its segments, without building them."""
+    gx, gy, gth = _to_frame(start, goal)
+    out: list[tuple[str, float]] = []
+    for w in ("LSL", "RSR", "LSR", "RSL"):
+        if w not in words:
+            continue
+        sol = _csc_closed(w, gx, gy, gth, kmax, math.inf)
+        if sol is None:
+            continue
+        d1, ell, d2 = sol
+        out.append((w, sum([L for L in (d1 / kmax if d1 > 1e-12 else None, ell if ell > 1e-12 else None,
+                                        d2 / kmax if d2 > 1e-12 else None) if L is not None])))
+    for w in ("LRL", "RLR"):
+        if w not in words:
+            continue
+        for ds in _ccc_dubins(w, gx, gy, gth, 1.0 / kmax):
+            out.append((w, sum([d / kmax for d in ds if d > 1e-12])))
+    return out
 
 
 def turning_rad(fp: FamilyPath) -> float:

@@ -25,12 +25,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Protocol, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from ...types import FloatArray
-from ._plan import TimedPlan
+from ._plan import TimedLimits, TimedPlan
+
+if TYPE_CHECKING:
+    from ._path import GeoPath
 
 __all__ = [
     "deviation_point",
@@ -41,6 +45,8 @@ __all__ = [
     "first_conflict",
     "first_blocked_s",
     "cluster_ordered",
+    "cluster_labels",
+    "path_prefix_blocked",
     "moving_obstacles_from",
 ]
 
@@ -161,21 +167,37 @@ def first_conflict(plan: TimedPlan, obstacles: Sequence[SpaceTimeObstacle], t_fr
     if not obstacles or t_to_s <= t_from_s:
         return None
     ts = np.arange(t_from_s, t_to_s + 1e-9, dt_s)
-    P = plan.footprint_at(ts)
+    px, py = plan.footprint_xy(ts)
     r_rob = plan.limits.radius_m
     best: Conflict | None = None
     for i, ob in enumerate(obstacles):
-        centre, R = ob.predict(ts)
-        gap = np.hypot(P[:, 0] - centre[:, 0], P[:, 1] - centre[:, 1]) - R - r_rob - margin_m
-        bad = np.flatnonzero(gap < 0.0)
-        if len(bad) and (best is None or ts[bad[0]] < best.t_s):
-            k = int(bad[0])
+        if isinstance(ob, MovingObstacle):  # MovingObstacle.predict written out, without stacking the centres
+            dt = np.maximum(ts - ob.stamp_s, 0.0)
+            ox, oy = ob.x_m + ob.vx_m_s * dt, ob.y_m + ob.vy_m_s * dt
+            R = ob.radius_m + ob.k_sigma * ob.pos_sigma_m + np.minimum(ob.k_sigma * ob.speed_sigma_m_s * dt, ob.max_growth_m)
+        else:
+            centre, R = ob.predict(ts)
+            ox, oy = centre[:, 0], centre[:, 1]
+        gap = np.hypot(px - ox, py - oy) - R - r_rob - margin_m
+        neg = gap < 0.0
+        if not neg.any():
+            continue
+        k = int(neg.argmax())
+        if best is None or ts[k] < best.t_s:
             k2 = min(k + 1, len(ts) - 1)
             k1 = k2 - 1 if k2 > 0 else 0
-            vel = (centre[k2] - centre[k1]) / max(ts[k2] - ts[k1], 1e-9) if k2 != k1 else np.zeros(2)
-            best = Conflict(float(ts[k]), i, (float(P[k, 0]), float(P[k, 1])), (float(centre[k, 0]), float(centre[k, 1])),
+            if k2 != k1:
+                w = max(ts[k2] - ts[k1], 1e-9)
+                vel = ((ox[k2] - ox[k1]) / w, (oy[k2] - oy[k1]) / w)
+            else:
+                vel = (0.0, 0.0)
+            best = Conflict(float(ts[k]), i, (float(px[k]), float(py[k])), (float(ox[k]), float(oy[k])),
                             (float(vel[0]), float(vel[1])), float(gap[k]))
     return best
+
+
+#: a point set up to this size is checked against every footprint sample directly (no bounding-box prefilter)
+_DIRECT_POINTS = 48
 
 
 def first_blocked_s(plan: TimedPlan, points_xy: FloatArray, s_from_m: float, s_to_m: float, clearance_m: float,
@@ -188,25 +210,52 @@ def first_blocked_s(plan: TimedPlan, points_xy: FloatArray, s_from_m: float, s_t
     s_end = min(s_to_m, plan.path.length_m)
     if s_end < s_from_m:
         return None
-    s = np.append(np.arange(s_from_m, s_end, ds_m), s_end)  # the end itself too (up to ds_m was left out)
-    x, y, yaw, _ = plan.path.sample(s)
+    s = np.concatenate((np.arange(s_from_m, s_end, ds_m), (s_end,)))  # the end itself too (up to ds_m was left out)
+    x, y, yaw = plan.path.sample_xy_yaw(s)
     off = plan.limits.footprint_offset_m
     cx, cy = x + off * np.cos(yaw), y + off * np.sin(yaw)
     lim = plan.limits.radius_m + clearance_m
-    # cheap prefilter: points near the sampled stretch only
-    lo = np.array([cx.min() - lim, cy.min() - lim])
-    hi = np.array([cx.max() + lim, cy.max() + lim])
-    near = np.all((points_xy >= lo) & (points_xy <= hi), axis=1)
-    if not near.any():
-        return None
-    pts = points_xy[near]
+    if len(points_xy) <= _DIRECT_POINTS:  # a point outside the samples' box grown by lim cannot be within lim
+        near = None
+        pts = points_xy
+    else:  # cheap prefilter: points near the sampled stretch only
+        px, py = points_xy[:, 0], points_xy[:, 1]
+        near = (px >= cx.min() - lim) & (px <= cx.max() + lim) & (py >= cy.min() - lim) & (py <= cy.max() + lim)
+        if not near.any():
+            return None
+        pts = points_xy[near]
     hit = (cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2 < lim * lim
-    rows = np.flatnonzero(hit.any(axis=1))
-    if len(rows) == 0:
+    rows = hit.any(axis=1)
+    if not rows.any():
         return None
     mask = np.zeros(len(points_xy), dtype=bool)
-    mask[np.flatnonzero(near)[hit.any(axis=0)]] = True
-    return float(s[rows[0]]), mask
+    if near is None:
+        mask |= hit.any(axis=0)
+    else:
+        mask[np.flatnonzero(near)[hit.any(axis=0)]] = True
+    return float(s[int(rows.argmax())]), mask
+
+
+def path_prefix_blocked(path: "GeoPath", limits: "TimedLimits", points_xy: FloatArray, s_to_m: float, clearance_m: float,
+                        ds_m: float = 0.05) -> bool:
+    """True when the footprint disc along ``path`` comes within ``clearance_m`` of a point at one of
+    s = 0, ds, 2 ds, ... below min(``s_to_m``, its length): samples that :func:`first_blocked_s` from 0 also
+    takes, at the same places, along any longer path that begins with this one (a deviation's first leg), so
+    such a path is blocked too."""
+    if len(points_xy) == 0:
+        return False
+    s = np.arange(0.0, min(s_to_m, path.length_m), ds_m)
+    if len(s) == 0:
+        return False
+    x, y, yaw = path.sample_xy_yaw(s)
+    off = limits.footprint_offset_m
+    cx, cy = x + off * np.cos(yaw), y + off * np.sin(yaw)
+    lim = limits.radius_m + clearance_m
+    pts = points_xy
+    if len(pts) > _DIRECT_POINTS:
+        px, py = pts[:, 0], pts[:, 1]
+        pts = pts[(px >= cx.min() - lim) & (px <= cx.max() + lim) & (py >= cy.min() - lim) & (py <= cy.max() + lim)]
+    return bool(((cx[:, None] - pts[None, :, 0]) ** 2 + (cy[:, None] - pts[None, :, 1]) ** 2 < lim * lim).any())
 
 
 def cluster_ordered(points_xy: FloatArray, gap_m: float = 0.3) -> list[FloatArray]:
@@ -218,3 +267,14 @@ def cluster_ordered(points_xy: FloatArray, gap_m: float = 0.3) -> list[FloatArra
     d = np.hypot(*np.diff(points_xy, axis=0).T) if n > 1 else np.zeros(0)
     cuts = np.flatnonzero(d > gap_m) + 1
     return [np.asarray(c) for c in np.split(np.arange(n), cuts)]
+
+
+def cluster_labels(points_xy: FloatArray, gap_m: float = 0.3) -> npt.NDArray[np.intp]:
+    """(n,) cluster number of each point, points ordered by beam angle: the clusters of
+    :func:`cluster_ordered` numbered 0, 1, ... in order, without building one array per cluster."""
+    if len(points_xy) < 2:
+        return np.zeros(len(points_xy), dtype=np.intp)
+    d = points_xy[1:] - points_xy[:-1]
+    labels = np.zeros(len(points_xy), dtype=np.intp)
+    np.cumsum(np.hypot(d[:, 0], d[:, 1]) > gap_m, out=labels[1:])
+    return labels

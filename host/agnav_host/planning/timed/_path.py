@@ -15,13 +15,37 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ...types import FloatArray, norm_angle_rad
 from ._poly import BoundaryState
 
 __all__ = ["GeoPath", "build_path", "LAMBDA_SCALES"]
+
+
+_interp_real: Any = None
+try:  # np.interp's compiled core (numpy >= 2): np.interp only checks for complex values around it (these are real)
+    from numpy._core.multiarray import interp as _interp_real
+except ImportError:  # pragma: no cover - numpy 1.x: np.interp itself
+    pass
+
+
+def _interp(x: npt.NDArray[Any], xp: FloatArray, fp: FloatArray) -> FloatArray:
+    """np.interp(x, xp, fp) for real ``fp`` (the same function, without its Python-level checks)."""
+    if _interp_real is None:  # pragma: no cover
+        return np.asarray(np.interp(x, xp, fp))
+    out: FloatArray = _interp_real(x, xp, fp, None, None)
+    return out
+
+
+def _clip(x: npt.NDArray[Any], lo: float, hi: float) -> npt.NDArray[Any]:
+    """np.clip(x, lo, hi) (the same values: the maximum taken with ``lo`` first, as np.clip does for -0.0)
+    without np.clip's Python-level dispatch (several times its two ufunc calls on short arrays)."""
+    out: npt.NDArray[Any] = np.minimum(np.maximum(lo, x), hi)
+    return out
 
 #: tangent lengths tried per leg, as multiples of the chord length
 LAMBDA_SCALES = (1.0, 0.75, 1.35, 1.8)
@@ -69,16 +93,29 @@ class GeoPath:
         """(x, y, yaw, kappa) at arc lengths ``s_m``. Beyond the end the path continues straight
         along the final heading (the tracker looks ahead past the goal)."""
         s = np.asarray(s_m, dtype=float)
-        sc = np.clip(s, 0.0, self.s[-1])
-        x = np.interp(sc, self.s, self.xy[:, 0])
-        y = np.interp(sc, self.s, self.xy[:, 1])
-        yaw = np.interp(sc, self.s, self.yaw)
-        k = np.interp(sc, self.s, self.kappa)
+        sc = _clip(s, 0.0, self.s[-1])
+        x = _interp(sc, self.s, self.xy[:, 0])
+        y = _interp(sc, self.s, self.xy[:, 1])
+        yaw = _interp(sc, self.s, self.yaw)
+        k = _interp(sc, self.s, self.kappa)
         extra = s - sc
-        if np.any(extra != 0.0):
+        if (extra != 0.0).any():
             x = x + extra * np.cos(yaw)
             y = y + extra * np.sin(yaw)
         return x, y, yaw, k
+
+    def sample_xy_yaw(self, s_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(x, y, yaw) of :meth:`sample` (the same values), without the curvature: the collision checks'."""
+        s = np.asarray(s_m, dtype=float)
+        sc = _clip(s, 0.0, self.s[-1])
+        x = _interp(sc, self.s, self.xy[:, 0])
+        y = _interp(sc, self.s, self.xy[:, 1])
+        yaw = _interp(sc, self.s, self.yaw)
+        extra = s - sc
+        if (extra != 0.0).any():
+            x = x + extra * np.cos(yaw)
+            y = y + extra * np.sin(yaw)
+        return x, y, yaw
 
     def project(self, x_m: float, y_m: float, hint_s_m: float = 0.0, window_m: float = 2.0) -> tuple[float, float]:
         """(arc length, signed lateral offset + = left) of the nearest path point to (x, y), searched
@@ -94,7 +131,7 @@ class GeoPath:
         ab = b - a
         L2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
         q = np.array([x_m, y_m])
-        u = np.clip(np.einsum("ij,ij->i", q - a, ab) / L2, 0.0, 1.0)
+        u = _clip(np.einsum("ij,ij->i", q - a, ab) / L2, 0.0, 1.0)
         proj = a + u[:, None] * ab
         d2 = np.einsum("ij,ij->i", q - proj, q - proj)
         k = int(np.argmin(d2))
@@ -205,15 +242,10 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
     ks: list[FloatArray] = []
     hs: list[FloatArray] = []
     forms: list[str] = []
-    for a, b in zip(states[:-1], states[1:]):
-        key = (a.x_m, a.y_m, a.yaw_rad, a.steer_rad, b.x_m, b.y_m, b.yaw_rad, b.steer_rad, wheelbase_m, spacing_m)
-        leg = _LEGS.get(key)
-        if leg is None:
-            leg = _build_leg(a, b, wheelbase_m, spacing_m)
-            if len(_LEGS) >= 64:
-                _LEGS.clear()
-            _LEGS[key] = leg
-        wx, wy, kap, hd, form = leg
+    legs = [_leg(a, b, wheelbase_m, spacing_m) for a, b in zip(states[:-1], states[1:])]
+    if len(legs) == 1:
+        return legs[0][5]  # built with the leg, the same arrays (never modified)
+    for wx, wy, kap, hd, form, _ in legs:
         if xs:  # drop the duplicated joint
             wx, wy, kap, hd = wx[1:], wy[1:], kap[1:], hd[1:]
         xs.append(wx)
@@ -221,6 +253,12 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
         ks.append(kap)
         hs.append(hd)
         forms.append(form)
+    return _assemble(xs, ys, ks, hs, forms)
+
+
+def _assemble(xs: list[FloatArray], ys: list[FloatArray], ks: list[FloatArray], hs: list[FloatArray],
+              forms: list[str]) -> GeoPath:
+    """The path of legs sampled in world coordinates (joints already dropped): unwrapped yaw, arc length, knots."""
     x, y, kappa = np.concatenate(xs), np.concatenate(ys), np.concatenate(ks)
     h = np.concatenate(hs)
     dh = np.diff(h)
@@ -232,37 +270,96 @@ def build_path(states: list[BoundaryState], wheelbase_m: float, spacing_m: float
     return GeoPath(np.column_stack((x, y)), yaw, kappa, s, tuple(forms), knots)
 
 
+def _single_leg(x: FloatArray, y: FloatArray, kappa: FloatArray, h: FloatArray, form: str) -> GeoPath:
+    """:func:`_assemble` of one leg (the same arithmetic, without the concatenations)."""
+    n = len(h)
+    yaw = np.empty(n)
+    yaw[0] = h[0]
+    np.cumsum(norm_angle_rad(h[1:] - h[:-1]), out=yaw[1:])
+    yaw[1:] += h[0]  # unwrapped
+    s = np.empty(n)
+    s[0] = 0.0
+    np.cumsum(np.hypot(x[1:] - x[:-1], y[1:] - y[:-1]), out=s[1:])
+    return GeoPath(np.column_stack((x, y)), yaw, kappa, s, (form,), (0.0, float(s[-1])))
+
+
+_Leg = tuple[FloatArray, FloatArray, FloatArray, FloatArray, str, GeoPath]
+
+
+def _leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float, spacing_m: float) -> _Leg:
+    """One leg (x, y, kappa, heading, form, the leg alone as a path), from :data:`_LEGS` when built before."""
+    key = (a.x_m, a.y_m, a.yaw_rad, a.steer_rad, b.x_m, b.y_m, b.yaw_rad, b.steer_rad, wheelbase_m, spacing_m)
+    leg = _LEGS.get(key)
+    if leg is None:
+        wx, wy, kap, hd, form = _build_leg(a, b, wheelbase_m, spacing_m)
+        leg = (wx, wy, kap, hd, form, _single_leg(wx, wy, kap, hd, form))
+        if len(_LEGS) >= 64:
+            _LEGS.clear()
+        _LEGS[key] = leg
+    return leg
+
+
 #: legs already built (a search rebuilds the same legs behind its via point for every candidate and
 #: every control step); keyed by the exact end states, cleared when full. Entries are never modified.
-_LEGS: dict[tuple[float, ...], tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]] = {}
+_LEGS: dict[tuple[float, ...], _Leg] = {}
 
 
 def _build_leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float,
                spacing_m: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]:
     """One leg in world coordinates: (x, y, kappa, heading, form); see :func:`build_path`."""
-    dx, dy = b.x_m - a.x_m, b.y_m - a.y_m
-    chord = math.hypot(dx, dy)
-    if chord < 1e-6:
-        raise ValueError(f"two consecutive path states coincide at ({a.x_m:.3f}, {a.y_m:.3f})")
-    c_yaw = math.atan2(dy, dx)
+    chord, c_yaw, form, cx, cy, _ = _leg_shape(a, b, wheelbase_m)
     cc, sc = math.cos(c_yaw), math.sin(c_yaw)
-    ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
-    rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
-    form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
-    CX, CY = _leg_candidates(ra, rb, tuple(chord * k for k in LAMBDA_SCALES), wheelbase_m, form)
-    _, _, sp, kap, hd = _eval_leg(CX, CY, 41)
-    # no cusp: the tangent never (nearly) vanishes at a sample, and never turns by more than 90 deg
-    # between two neighbouring samples. The second test catches a cusp that falls between samples on
-    # a straight back-and-forth leg (goal behind the start, same heading): there the curvature is 0
-    # everywhere and the heading flips by 180 deg in place, which no car can drive.
-    ok = (sp.min(axis=0) >= 1e-3 * chord) & (np.cos(np.diff(hd, axis=0)).min(axis=0) > 0.0)
-    if not ok.any():
-        raise ValueError("no cusp-free polynomial leg between the states")
-    peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
-    j = int(np.argmin(peak))
-    cx, cy = CX[:, j], CY[:, j]
     n = int(min(max(math.ceil(chord / spacing_m / 20.0) * 20, 40), 1500))  # quantised: reuses bases
     lx, ly, _, kap, hd = _eval_leg(cx, cy, n + 1)
     wx, wy = a.x_m + cc * lx - sc * ly, a.y_m + sc * lx + cc * ly
     hd = hd + c_yaw
     return wx, wy, kap, hd, form
+
+
+def leg_kappa_floor(a: BoundaryState, b: BoundaryState, wheelbase_m: float) -> float:
+    """A lower bound of the peak |curvature| of the polynomial leg ``a`` -> ``b`` that :func:`build_path`
+    samples, 1/m, without sampling it: the peak over its shape's samples at u = 0, 1/20, ..., 1, which are
+    among the path's samples (every path leg has a multiple of 20 intervals). ValueError as :func:`build_path`."""
+    return _leg_shape(a, b, wheelbase_m)[5]
+
+
+#: leg shapes already solved (:func:`_leg_shape`), keyed by the exact end states; cleared when full
+_SHAPES: dict[tuple[float, ...], tuple[float, float, str, FloatArray, FloatArray, float]] = {}
+
+
+def _leg_shape(a: BoundaryState, b: BoundaryState, wheelbase_m: float) -> tuple[float, float, str, FloatArray, FloatArray, float]:
+    """(chord, chord direction, form, x and y coefficients (6,) in the chord frame, peak |kappa| at u = k/20) of
+    the leg's polynomial: the tangent length of :data:`LAMBDA_SCALES` with the smallest peak curvature."""
+    key = (a.x_m, a.y_m, a.yaw_rad, a.steer_rad, b.x_m, b.y_m, b.yaw_rad, b.steer_rad, wheelbase_m)
+    shape = _SHAPES.get(key)
+    if shape is not None:
+        return shape
+    dx, dy = b.x_m - a.x_m, b.y_m - a.y_m
+    chord = math.hypot(dx, dy)
+    if chord < 1e-6:
+        raise ValueError(f"two consecutive path states coincide at ({a.x_m:.3f}, {a.y_m:.3f})")
+    c_yaw = math.atan2(dy, dx)
+    ra = BoundaryState(0.0, 0.0, norm_angle_rad(a.yaw_rad - c_yaw), a.steer_rad)
+    rb = BoundaryState(chord, 0.0, norm_angle_rad(b.yaw_rad - c_yaw), b.steer_rad)
+    form = "003" if max(abs(ra.yaw_rad), abs(rb.yaw_rad)) <= _MAX_REL_003_RAD else "hermite5"
+    CX, CY = _leg_candidates(ra, rb, tuple(chord * k for k in LAMBDA_SCALES), wheelbase_m, form)
+    _, v1, v2 = _basis(41)  # the derivatives only (the expressions of _eval_leg)
+    xd, yd = v1 @ CX, v1 @ CY
+    xdd, ydd = v2 @ CX, v2 @ CY
+    sp = np.hypot(xd, yd)
+    kap = (xd * ydd - yd * xdd) / np.maximum(sp, 1e-12) ** 3
+    hd = np.arctan2(yd, xd)
+    # no cusp: the tangent never (nearly) vanishes at a sample, and never turns by more than 90 deg
+    # between two neighbouring samples. The second test catches a cusp that falls between samples on
+    # a straight back-and-forth leg (goal behind the start, same heading): there the curvature is 0
+    # everywhere and the heading flips by 180 deg in place, which no car can drive.
+    ok = (sp.min(axis=0) >= 1e-3 * chord) & (np.cos(hd[1:] - hd[:-1]).min(axis=0) > 0.0)
+    if not ok.any():
+        raise ValueError("no cusp-free polynomial leg between the states")
+    peak = np.where(ok, np.abs(kap).max(axis=0), np.inf)
+    j = int(peak.argmin())
+    shape = (chord, c_yaw, form, CX[:, j], CY[:, j], float(np.abs(kap[::2, j]).max()))
+    if len(_SHAPES) >= 64:
+        _SHAPES.clear()
+    _SHAPES[key] = shape
+    return shape

@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any
+from functools import lru_cache
+from typing import Any, Callable
 
 import numpy as np
 
@@ -157,9 +158,13 @@ class TimedPlan:
     def footprint_at(self, t_s: FloatArray) -> FloatArray:
         """Footprint-disc centres (n, 2) at absolute times, m (the robot waits at its final pose after
         the end and before the start)."""
-        x, y, yaw, _, _, _ = self.at(t_s)
+        return np.column_stack(self.footprint_xy(t_s))
+
+    def footprint_xy(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The x and y columns of :meth:`footprint_at` (the same values)."""
+        x, y, yaw = self.path.sample_xy_yaw(self.profile.s_at(np.asarray(t_s, dtype=float) - self.t0_s))
         off = self.limits.footprint_offset_m
-        return np.column_stack((x + off * np.cos(yaw), y + off * np.sin(yaw)))
+        return x + off * np.cos(yaw), y + off * np.sin(yaw)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready description (the ``agnav plan --json`` keys)."""
@@ -203,7 +208,8 @@ CC_SPEED_CAPS_M_S = (1.0, 0.6, 0.45)
 def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arrival_s: float | None,
                limits: TimedLimits | None = None, vias: tuple[BoundaryState, ...] = (), *,
                dwell_first_s: float = 0.0, deadline: float | None = None, tags: tuple[str, ...] = (),
-               auto_via: bool = True, path: GeoPath | None = None) -> TimedPlan:
+               auto_via: bool = True, path: GeoPath | None = None,
+               reject_prefix: Callable[[GeoPath], bool] | None = None) -> TimedPlan:
     """Plan from ``start`` (its speed and steering are the current ones) through ``vias`` to ``goal``
     (reached at rest), arriving at the absolute time ``arrival_s`` (None: untimed, at the cruise speed).
 
@@ -215,6 +221,8 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
     replanning call builds); the earliest arrival is then the earliest of those.
     ``path``: reuse this geometry (it must run through exactly these states; re-timing candidates).
     ``dwell_first_s``: brake now and wait this long before going on (the "yield" retiming).
+    ``reject_prefix`` (with via points): a test of the path's first leg; when it says True no path is built
+    (the plan comes back with no path, as when no leg fits).
     Never raises for an impossible request: the plan comes back with ``feasible`` False, the reason and
     the earliest arrival, timed for that earliest arrival so it can still be driven. ``deadline``
     (a time.perf_counter() value) raises :class:`DeadlineMissed` when passed.
@@ -238,7 +246,7 @@ def plan_timed(start: BoundaryState, goal: BoundaryState, t_start_s: float, arri
 
     # 1. the ref-003 polynomials (the smoothest) where they fit the steering limit and the time
     if vias:
-        geo = via_candidate(list(states), lim, lim.v_max_m_s)
+        geo = via_candidate(list(states), lim, lim.v_max_m_s, reject_prefix)
         if geo is not None:
             p = _plan_on(geo, s0, states, t_start_s, arrival_s, tau, lim, dwell_first_s, tags)
             if fits(p):
@@ -355,6 +363,12 @@ def _tail_for(d_rest: float, v0: float, lim: TimedLimits, sp: SpeedLimits,
     return d_rest - d_tail - d_creep, lim.v_min_m_s, tail, t_creep + t_tail - settle, settle
 
 
+@lru_cache(maxsize=64)
+def _speed_limits(v_min_m_s: float, v_max_m_s: float, accel_m_s2: float) -> SpeedLimits:
+    """SpeedLimits (frozen, validated once per band)."""
+    return SpeedLimits(v_min_m_s, v_max_m_s, accel_m_s2)
+
+
 def _plan_on(path: GeoPath, s0: BoundaryState, states: tuple[BoundaryState, ...], t_start_s: float,
              arrival_s: float | None, tau_req: float | None, lim: TimedLimits, dwell_first_s: float,
              tags: tuple[str, ...]) -> TimedPlan:
@@ -377,11 +391,11 @@ def _plan_on(path: GeoPath, s0: BoundaryState, states: tuple[BoundaryState, ...]
         top = lim.reverse_v_max_m_s if rev else lim.v_max_m_s
         top = min(top, path.speed_cap_m_s)
         if top <= lim.v_min_m_s + 1e-6:
-            sp = SpeedLimits(lim.v_min_m_s, lim.v_min_m_s + 1e-6, lim.accel_m_s2)
+            sp = _speed_limits(lim.v_min_m_s, lim.v_min_m_s + 1e-6, lim.accel_m_s2)
             feasible = False
             reasons.append(f"the servo's steering rate allows only {top:.2f} m/s on this path, below the speed band")
         else:
-            sp = SpeedLimits(lim.v_min_m_s, top, lim.accel_m_s2)
+            sp = _speed_limits(lim.v_min_m_s, top, lim.accel_m_s2)
         pieces.append((b - a, sp))
     if v0 > path.speed_cap_m_s + 1e-6:
         feasible = False

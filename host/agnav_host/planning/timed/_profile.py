@@ -17,12 +17,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ...types import FloatArray
 
 __all__ = ["SpeedLimits", "SpeedProfile", "LegInfeasible", "leg_time_s", "leg_min_time_s", "solve_leg", "concat_profiles"]
+
+
+def _clip(x: npt.NDArray[Any], lo: float, hi: float) -> npt.NDArray[Any]:
+    """np.clip(x, lo, hi) (the same values: the maximum taken with ``lo`` first, as np.clip does for -0.0)
+    without np.clip's Python-level dispatch (several times its two ufunc calls on short arrays)."""
+    out: npt.NDArray[Any] = np.minimum(np.maximum(lo, x), hi)
+    return out
 
 
 @dataclass(frozen=True)
@@ -90,12 +99,22 @@ class SpeedProfile:
 
     def eval(self, t_rel: FloatArray | float) -> tuple[FloatArray, FloatArray]:
         """(arc length m, speed m/s) at times relative to the profile start; clamped at both ends."""
-        t = np.clip(np.asarray(t_rel, dtype=float), 0.0, self.t_s[-1])
+        t = _clip(np.asarray(t_rel, dtype=float), 0.0, self.t_s[-1])
         if len(self.a_m_s2) == 0:
             return np.zeros_like(t), np.zeros_like(t)
-        k = np.clip(np.searchsorted(self.t_s, t, "right") - 1, 0, len(self.a_m_s2) - 1)
+        k = _clip(np.searchsorted(self.t_s, t, "right") - 1, 0, len(self.a_m_s2) - 1)
         dt = t - self.t_s[k]
         return self.s_m[k] + self.v_m_s[k] * dt + 0.5 * self.a_m_s2[k] * dt * dt, self.v_m_s[k] + self.a_m_s2[k] * dt
+
+    def s_at(self, t_rel: FloatArray) -> FloatArray:
+        """The arc length of :meth:`eval` (the same values), without the speed."""
+        t = _clip(np.asarray(t_rel, dtype=float), 0.0, self.t_s[-1])
+        if len(self.a_m_s2) == 0:
+            return np.zeros_like(t)
+        k = _clip(np.searchsorted(self.t_s, t, "right") - 1, 0, len(self.a_m_s2) - 1)
+        dt = t - self.t_s[k]
+        out: FloatArray = self.s_m[k] + self.v_m_s[k] * dt + 0.5 * self.a_m_s2[k] * dt * dt
+        return out
 
     def coming_to_rest(self, t_rel: float) -> bool:
         """True while the profile stands still in a dwell at ``t_rel`` (relative), or brakes straight into one."""
@@ -195,11 +214,18 @@ def solve_leg(d: float, tau: float, v_s: float, v_e: float, lim: SpeedLimits, al
             if max(v_s, v_e) - 1e-9 <= v <= vp + 1e-9 and v >= v_lo - 1e-9 and abs(leg_time_s(d, v_s, v_e, v, a) - tau) < 1e-6:
                 return _profile_from(_phases_for(d, v_s, v_e, v, a))
         lo, hi = v_lo, vp  # t(lo) >= tau >= t(hi)
+        two_a = 2.0 * a
+        vs2, ve2 = v_s * v_s, v_e * v_e
         for _ in range(50):  # to 1e-9 m/s: about 31 halvings of a 2 m/s bracket
             if hi - lo < 1e-9:
                 break
             mid = 0.5 * (lo + hi)
-            if leg_time_s(d, v_s, v_e, mid, a) > tau:
+            # leg_time_s(d, v_s, v_e, mid, a) written out (the same arithmetic)
+            m2 = mid * mid
+            cruise = d - abs(m2 - vs2) / two_a - abs(ve2 - m2) / two_a
+            t_mid = math.inf if cruise < -1e-9 or mid <= 0 else \
+                abs(mid - v_s) / a + abs(mid - v_e) / a + max(cruise, 0.0) / mid
+            if t_mid > tau:
                 lo = mid
             else:
                 hi = mid
@@ -232,19 +258,22 @@ def solve_leg(d: float, tau: float, v_s: float, v_e: float, lim: SpeedLimits, al
 
 def concat_profiles(parts: list[SpeedProfile]) -> SpeedProfile:
     """Profiles one after the other (times and arc lengths offset)."""
-    t = [0.0]
-    s: list[float] = []
-    v: list[float] = []
-    acc: list[float] = []
+    ts: list[FloatArray] = [np.zeros(1)]
+    ss: list[FloatArray] = []
+    vs: list[FloatArray] = []
+    accs: list[FloatArray] = []
     kinds: list[str] = []
     t0 = s0 = 0.0
     for p in parts:
-        for k in range(len(p.a_m_s2)):
-            s.append(s0 + float(p.s_m[k]))
-            v.append(float(p.v_m_s[k]))
-            acc.append(float(p.a_m_s2[k]))
-            kinds.append(p.kind[k])
-            t.append(t0 + float(p.t_s[k + 1]))
+        n = len(p.a_m_s2)
+        if n:
+            ss.append(p.s_m[:n] + s0)
+            vs.append(p.v_m_s[:n])
+            accs.append(p.a_m_s2[:n])
+            kinds.extend(p.kind[:n])
+            ts.append(p.t_s[1:n + 1] + t0)
         t0 += p.duration_s
         s0 += p.length_m
-    return SpeedProfile(np.array(t), np.array(s), np.array(v), np.array(acc), tuple(kinds))
+    if not ss:
+        return SpeedProfile(np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), ())
+    return SpeedProfile(np.concatenate(ts), np.concatenate(ss), np.concatenate(vs), np.concatenate(accs), tuple(kinds))

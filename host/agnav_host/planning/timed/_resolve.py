@@ -32,13 +32,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
 from ...types import FloatArray
 from ..base import DeadlineMissed
-from ._obstacles import Conflict, SpaceTimeObstacle, first_blocked_s, first_conflict
+from ._obstacles import Conflict, SpaceTimeObstacle, first_blocked_s, first_conflict, path_prefix_blocked
+from ._path import GeoPath
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
 
@@ -187,6 +188,12 @@ def resolve(start: BoundaryState, goal: BoundaryState, t_now_s: float, arrival_s
             if bad:
                 del dev_state[i]
                 screened += 1
+        # a deviation whose first leg already runs into a static return is not clear whatever its other legs
+        # and its timing (consider() would refuse it): it is not built further (the same verdict, less work)
+        blocked_prefix: Callable[[GeoPath], bool] | None = None
+        if len(pts):
+            def blocked_prefix(g: GeoPath) -> bool:
+                return path_prefix_blocked(g, limits, pts, static_range_m, static_clear_m)
         for i in range(first_i, len(order)):
             kind, arg = order[i]
             if kind == "dev" and i not in dev_state:
@@ -203,7 +210,7 @@ def resolve(start: BoundaryState, goal: BoundaryState, t_now_s: float, arrival_s
                 continue
             label = arg[0]  # type: ignore[index]
             p = plan_timed(start, goal, t_now_s, arrival_s, limits, (dev_state[i], *vias), deadline=deadline, auto_via=False,
-                           tags=(label,))
+                           tags=(label,), reject_prefix=blocked_prefix)
             if consider(p, label) is not None:
                 return finish(p, label)
         if late is None and try_yield and base is not None:

@@ -26,7 +26,9 @@ keeps the current plan, reports "searching" and goes on at the next control step
 ``replan_budget_s`` is a wall-time backstop only (:class:`~agnav_host.planning.base.DeadlineMissed`
 inside; the planner then keeps its current plan and doubles the budget of its next try, up to 16x).
 Each call's wall and CPU time and its work go to ``replan_times_s``, ``replan_cpu_s`` and
-``replan_work``.
+``replan_work``. Python's automatic garbage collection is held off during a replanning call: a
+collection that falls due inside it (a full one takes up to 2.4 ms on a long run's heap) runs when the
+call returns, in the same control step, rather than inside the call (:func:`collection_deferred`).
 
 Speed commands are never below ``command_min_m_s``: the firmware maps a setpoint under its speed
 table's first point to neutral, which stopped the car in the middle of its final creep.
@@ -34,10 +36,12 @@ table's first point to neutral, which stopped the car in the middle of its final
 
 from __future__ import annotations
 
+import gc
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Iterable, cast
+from typing import Any, Iterable, Iterator, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -45,7 +49,7 @@ import numpy.typing as npt
 from ...types import DriveCommand, FloatArray, Goal, Observation, Pose2D, norm_angle_rad
 from ...perception._tracking import ObstacleTracker, Track, TrackerParams
 from ..base import DeadlineMissed, RobotSpec, arc_blocked
-from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_ordered, deviation_point,
+from ._obstacles import (MovingObstacle, PlanObstacle, SpaceTimeObstacle, cluster_labels, deviation_point,
                          first_blocked_s, first_conflict, moving_obstacles_from)
 from ._plan import TimedLimits, TimedPlan, plan_timed, via_state
 from ._poly import BoundaryState
@@ -55,6 +59,19 @@ from ._tracking import TrackingParams, TrackState, track
 __all__ = ["TimedParams", "TimedPlanner"]
 #: static searches with nothing clear before the clearance is down to 0 (halved at each)
 SQUEEZE_STEPS = 3
+
+
+@contextmanager
+def collection_deferred() -> Iterator[None]:
+    """Hold off Python's automatic garbage collection for the block; a collection that fell due inside
+    it runs at the first allocation after it. Nested use and a collector already disabled are kept."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 @dataclass(frozen=True)
@@ -275,23 +292,29 @@ class TimedPlanner:
         rel = pts - np.array([sen.x_m, sen.y_m])
         b_rel = norm_angle_rad(np.arctan2(rel[:, 1], rel[:, 0]) - sen.yaw_rad)
         order = np.argsort(b_rel)
-        clusters = cluster_ordered(pts[order], 0.3)
+        labels = cluster_labels(pts[order], 0.3)  # cluster of each return, in beam order
         dist = np.hypot(rel[:, 0], rel[:, 1])
-        blocking = [order[c] for c in clusters if mask[order[c]].any()]
-        c = min(blocking, key=lambda idx: float(dist[idx].min()))
-        _, _, yaw_blk, _ = self.plan.path.sample(s_blk_m)
-        t_hat = np.array([math.cos(float(yaw_blk)), math.sin(float(yaw_blk))])  # the plan's direction where blocked
+        # of the clusters with a blocking return, the one nearest the sensor (the first such in beam order on a tie)
+        blocking = np.zeros(int(labels[-1]) + 1, dtype=bool)
+        blocking[labels[mask[order]]] = True
+        cand = np.flatnonzero(blocking[labels])
+        near = labels[cand[int(np.argmin(dist[order[cand]]))]]
+        c = order[labels == near]
+        path = self.plan.path
+        yaw_blk = float(np.interp(min(max(s_blk_m, 0.0), path.length_m), path.s, path.yaw))  # path.sample's yaw
+        t_hat = np.array([math.cos(yaw_blk), math.sin(yaw_blk)])  # the plan's direction where blocked
         c = self._beside_blocking(pts, c, mask[c], t_hat)
         d_dect = float(dist[c].min())
-        theta_dect = sen.yaw_rad + 0.5 * float(b_rel[c].min() + b_rel[c].max())
-        ends = pts[c[[int(np.argmin(b_rel[c])), int(np.argmax(b_rel[c]))]]]
+        bc = b_rel[c]
+        theta_dect = sen.yaw_rad + 0.5 * float(bc.min() + bc.max())
+        ends = pts[c[[int(bc.argmin()), int(bc.argmax())]]]
         r_obs = max(0.05, 0.5 * float(np.hypot(*(ends[1] - ends[0]))))
         p = self.params
         lim = self.limits
         # the lateral offset Rsm + w must clear the obstacle's radius plus the footprint: grow Rsm if not
         r_sm = max(p.safety_margin_m, r_obs + lim.radius_m + p.static_clear_m + 0.05 - p.robot_width_m)
         # side: away from the obstacle's centre relative to the planned path near the detection
-        cx, cy = float(pts[c, 0].mean()), float(pts[c, 1].mean())
+        cx, cy = float(pts[c, 0].sum()) / len(c), float(pts[c, 1].sum()) / len(c)  # the means
         _, lat = self.plan.path.project(cx, cy, self.ts.s_m + d_dect, window_m=2.0)
         first = -1 if lat > 0 else 1
         out = []
@@ -360,7 +383,8 @@ class TimedPlanner:
                                                 window_m=max(1.0, 3.0 * abs(obs.speed_m_s) + 0.5))
         due = self._search is not None or t - self._last_replan_t >= p.min_replan_interval_s
         if not self.ts.stopping and due and self.plan.path.length_m - self.ts.s_m > 0.6:
-            self._maybe_replan(obs, target, pts, movers)
+            with collection_deferred():
+                self._maybe_replan(obs, target, pts, movers)
         v, steer = track(self.plan, obs.pose, obs.speed_m_s, t, self.ts, self.track_params)
         # learn how fast the car really goes for a command, and command through that ratio
         if self._last_v_cmd >= self.limits.v_min_m_s and obs.speed_m_s > 0.2 and abs(obs.speed_m_s - self._prev_speed) < 0.01:
