@@ -36,6 +36,7 @@ static struct {
     uint8_t enc_fault[HAL_ENCODER_MAX];
     uint8_t enc_ab[HAL_ENCODER_MAX]; /* line levels last delivered to the firmware */
     uint8_t sonar_fault[HAL_SONAR_MAX];
+    uint16_t world_echo_high; /* bit i: echo line i is high on a pulse of the world's (not an injected one) */
     uint32_t isr_cost_us;
     uint32_t resets;
     uint32_t wdt_kicks_seen;
@@ -86,10 +87,18 @@ static void encoder_deliver(uint8_t idx, uint8_t ab)
     sim_encoder_edge(idx, ab);
 }
 
+/* A faulty sensor's line gets none of the world's echoes, except the end of a world pulse already
+ * high when the fault began: the sensor ends the pulse in flight (a line left high would be a line
+ * stuck high, which neither fault is). */
 static void echo_deliver(uint8_t idx, uint8_t level, int injected)
 {
-    if (idx < HAL_SONAR_MAX && S.sonar_fault[idx] != SIL_FAULT_NONE && !injected) {
-        return; /* the world's echo never reaches a faulty sensor's line */
+    if (idx < HAL_SONAR_MAX && !injected) {
+        uint16_t bit = (uint16_t)(1u << idx);
+        bool in_flight = level == 0u && (S.world_echo_high & bit) != 0u;
+        if (S.sonar_fault[idx] != SIL_FAULT_NONE && !in_flight) {
+            return;
+        }
+        S.world_echo_high = (uint16_t)(level != 0u ? S.world_echo_high | bit : S.world_echo_high & ~bit);
     }
     sim_sonar_echo_edge(idx, level);
 }
@@ -368,6 +377,7 @@ void sil_fault_reset(int cause)
     static uint8_t keep[SIM_EEPROM_SIZE];
     memcpy(keep, sim_eeprom_bytes(), SIM_EEPROM_SIZE);
     sim_reset(); /* pins, UART buffers, timers: what a core reset clears */
+    S.world_echo_high = 0u; /* sim_reset() let the echo lines go low */
     sim_eeprom_set_write_us(SIL_EEPROM_WRITE_US);
     memcpy(sim_eeprom_bytes(), keep, SIM_EEPROM_SIZE);
     sim_sonar_on_trigger(on_trigger);

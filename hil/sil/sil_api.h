@@ -133,6 +133,9 @@ uint32_t sil_eeprom_writes(void); /* native: EEPROM bytes programmed since reset
  *     SIL_SONAR_ZERO        an echo pulse of SIL_SONAR_ZERO_ECHO_US starts
  *                           SIL_SONAR_ZERO_DELAY_US after every trigger (reads ~0 mm:
  *                           a shorted transducer / ringing); world edges swallowed.
+ *                           Either fault lets a world pulse already high when it begins
+ *                           end on time (its falling edge is delivered): the line is never
+ *                           left high, which would be a third fault (output stuck high).
  *   EEPROM     sil_eeprom_record(which, &addr, &len) locates a record (SIL_REC_*);
  *              sil_eeprom_corrupt(addr, len, xor_mask) flips bits there; the firmware
  *              sees it at its next boot (sil_reboot() or sil_fault_reset()).

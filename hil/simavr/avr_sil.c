@@ -151,6 +151,7 @@ static struct {
     uint32_t resets;         /* core resets after power-on (watchdog, ...) */
     /* fault injection (sil_api.h) */
     uint8_t enc_fault[4], enc_ab[4], sonar_fault[12];
+    uint16_t world_echo_high; /* bit i: echo line i is high on a pulse of the world's (not an injected one) */
     uint64_t last_kick_cycle;
     uint32_t kick_gap_max_us;
     avr_model_link_t link;   /* host side of UART0 and its byte counts */
@@ -496,8 +497,13 @@ static void enc_deliver(uint8_t i, uint8_t ab)
 
 static void echo_deliver(uint8_t i, uint8_t level, int injected)
 {
-    if (i < 12u && S.sonar_fault[i] != SIL_FAULT_NONE && !injected) {
-        return;
+    if (i < 12u && !injected) {
+        uint16_t bit = (uint16_t)(1u << i);
+        int in_flight = level == 0u && (S.world_echo_high & bit) != 0u; /* a pulse high when the fault began ends */
+        if (S.sonar_fault[i] != SIL_FAULT_NONE && !in_flight) {
+            return;
+        }
+        S.world_echo_high = (uint16_t)(level != 0u ? S.world_echo_high | bit : S.world_echo_high & ~bit);
     }
     echo_set(i, level);
 }

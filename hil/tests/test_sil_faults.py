@@ -3,6 +3,7 @@ detected, reported and ends in a stop; docs/safety.md describes each one."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -37,6 +38,10 @@ class Host:
         self.wheel_edges = True  # the wheel turns: without counts the health monitor stops the robot
         self.wheels = 1  # encoders that get those edges
         self.echo_us = {i: 11_662 for i in range(12)}  # 2000 mm everywhere
+        # (sensor, us after its echo rises, action): done once, on that sensor's next echo (inside_echo)
+        self.in_echo: tuple[int, int, Callable[[], object]] | None = None
+        self.due: tuple[int, Callable[[], object]] | None = None
+        self.triggers: list[tuple[int, int]] = []  # (sensor, time_us) of every trigger pulse
 
     def send(self, msg) -> None:
         self.fw.uart_write(msg.pack(self.mav))
@@ -63,10 +68,17 @@ class Host:
                 for w in range(self.wheels):
                     self.fw.queue_encoder_edges(w, [t0 + k * 2_500 for k in range(20)], [0b10, 0b11, 0b01, 0b00] * 5)
             while self.fw.time_us < t:
-                self.fw.step_to(t)
+                self.fw.step_to(t if self.due is None else min(t, self.due[0]))
+                if self.due is not None and self.fw.time_us >= self.due[0]:
+                    self.due[1]()
+                    self.due = None
                 for idx, tt in self.fw.take_triggers():
+                    self.triggers.append((idx, tt))
                     self.fw.queue_echo(idx, tt + 200, 1)
                     self.fw.queue_echo(idx, tt + 200 + self.echo_us[idx], 0)
+                    if self.in_echo is not None and idx == self.in_echo[0]:
+                        self.due = (tt + 200 + self.in_echo[1], self.in_echo[2])
+                        self.in_echo = None
             out += decode(self.fw.uart_read())
         self.msgs += out
         return out
@@ -234,6 +246,32 @@ def test_sonar_fault_is_detected_reported_once_and_stops_until_armed(mode, shift
         h.command(D.MAV_CMD_COMPONENT_ARM_DISARM, 1)
         h.run(1_000_000)
         assert driving(fw), "armed with a healthy sensor: drives again"
+
+
+@pytest.mark.parametrize("mode,word", [("timeout", "never echoes"), ("zero", "reads zero")])
+def test_sonar_fault_that_begins_inside_an_echo_keeps_its_diagnosis(mode, word):
+    """The fault starts while sensor 3's echo is high (free space: a 30 ms pulse): the pulse in flight still
+    ends, so the firmware sees the fault itself ("zero": VALID ~10 mm readings), not a line stuck high."""
+    with Firmware() as fw:
+        h = Host(fw)
+        h.echo_us[3] = 30_000  # nothing in range: the echo runs past max range (NO_ECHO)
+        h.run(1_000_000)
+        assert driving(fw)
+        h.in_echo = (3, 15_000, lambda: fw.fault_sonar(3, mode))
+        h.run(200_000)
+        assert h.in_echo is None and h.due is None, "the fault went in"
+        msgs = h.run(2_000_000)
+        assert not driving(fw), f"sonar 3 {mode}: still driving"
+        said = [t for t in texts(msgs) if t.startswith("health: sonar")]
+        assert said == [f"health: sonar 3 {word}, stop"], texts(msgs)
+        # a line left high stops the pings (a sensor cannot start one on a high line): the ring goes on firing it
+        late = [tt for idx, tt in h.triggers if idx == 3 and tt >= fw.time_us - 1_000_000]
+        assert len(late) >= 9, f"sonar 3 fired {len(late)} times in the last second"
+        rings = [m for m in msgs if m.get_type() == "AGNAV_SONAR_RING"]
+        if mode == "zero":
+            assert D.AGNAV_SONAR_FAULT not in {m.status[3] for m in rings}, [m.status[3] for m in rings]
+            near = [m.ranges_mm[3] for m in rings if m.status[3] == D.AGNAV_SONAR_VALID]
+            assert near and near[-1] <= 15, f"sonar 3 reads {near[-3:]} mm"
 
 
 def test_sonar_free_space_is_not_a_fault():

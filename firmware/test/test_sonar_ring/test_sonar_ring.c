@@ -14,6 +14,8 @@
 #define MODE_HELD 4u   /* 450 us after the first trigger the line goes high and is held there
                           (sim_sonar_echo_hold_high): an output stuck high, an unplugged sensor on
                           a pulled-up pin */
+#define MODE_SHORT 5u  /* 60 us pulse 300 us after every trigger: reads ~10 mm (a shorted or ringing
+                          transducer, or a target touching the sensor) */
 
 #define EV_RISE 1u
 #define EV_FALL 2u
@@ -56,6 +58,11 @@ static void on_trigger(uint8_t idx, uint32_t t_us)
     case MODE_ECHO:
         rise_at[idx] = t_us + 450u;
         fall_at[idx] = rise_at[idx] + sonar_ring_echo_us_from_mm(world_mm[idx]);
+        due[idx] = EV_RISE | EV_FALL;
+        break;
+    case MODE_SHORT:
+        rise_at[idx] = t_us + 300u;
+        fall_at[idx] = rise_at[idx] + 60u;
         due[idx] = EV_RISE | EV_FALL;
         break;
     case MODE_FREE:
@@ -206,6 +213,24 @@ void test_sonar_ring_step_reports_no_echo_when_pulse_runs_past_max_range(void)
     TEST_ASSERT_EQUAL_UINT16_MESSAGE(4000u, f.ranges_mm[3], "free space reads max range");
     TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_NO_ECHO, f.status[4], "pulse longer than max range");
     TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, sonar_ring_fault_count(3), "free space is not a fault");
+}
+
+/* An echo that starts right after the trigger and ends at once is a reading of ~10 mm, VALID: the
+ * health monitor's zero-run rule ("reads zero") diagnoses it, not the ring's FAULT ("never echoes"). */
+void test_sonar_ring_step_reads_short_echo_right_after_trigger_as_valid_10mm(void)
+{
+    mode[0] = MODE_SHORT;  /* group 0: first of the pass */
+    mode[11] = MODE_SHORT; /* group 2: last of the pass */
+    run_for(400000UL, 250u);
+    sonar_frame_t f;
+    TEST_ASSERT_TRUE_MESSAGE(sonar_ring_snapshot(&f), "a ring completed");
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_VALID, f.status[0], "short echo: VALID");
+    TEST_ASSERT_UINT16_WITHIN_MESSAGE(1u, 10u, f.ranges_mm[0], "60 us: 10 mm");
+    TEST_ASSERT_EQUAL_UINT8_MESSAGE(SONAR_VALID, f.status[11], "short echo in the last group: VALID");
+    TEST_ASSERT_UINT16_WITHIN_MESSAGE(1u, 10u, f.ranges_mm[11], "last group: 10 mm");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, sonar_ring_fault_count(0), "no fault counted");
+    TEST_ASSERT_EQUAL_UINT16_MESSAGE(0u, sonar_ring_fault_count(11), "no fault counted, last group");
+    TEST_ASSERT_UINT16_WITHIN_MESSAGE(5u, 2000u, f.ranges_mm[1], "neighbour unaffected");
 }
 
 void test_sonar_ring_step_reports_fault_and_counts_when_no_rising_edge(void)
@@ -565,6 +590,7 @@ int main(void)
     RUN_TEST(test_sonar_ring_step_measures_near_target_at_100mm_within_5mm);
     RUN_TEST(test_sonar_ring_step_measures_far_target_at_3m_within_10mm);
     RUN_TEST(test_sonar_ring_step_reports_no_echo_when_pulse_runs_past_max_range);
+    RUN_TEST(test_sonar_ring_step_reads_short_echo_right_after_trigger_as_valid_10mm);
     RUN_TEST(test_sonar_ring_step_reports_fault_and_counts_when_no_rising_edge);
     RUN_TEST(test_sonar_ring_step_reports_fault_when_echo_line_stuck_high);
     RUN_TEST(test_sonar_ring_step_reports_fault_in_every_frame_when_echo_line_goes_high_and_stays);
