@@ -91,19 +91,45 @@ def write_c_wrapper(out: Path) -> Path:
         " * (sysid, compid, link id) that sent a signed frame takes 9 bytes of RAM: two suffice\n"
         " * for a host and a ground station; a third is refused until the next reboot. */\n"
         "#define MAVLINK_MAX_SIGNING_STREAMS 2\n"
-        "/* One channel status (sequence counters) for the whole program: MAVLink's default is a\n"
-        " * static array per source file, which gives each file its own tx sequence. Weak, so every\n"
-        " * file may define it and the linker keeps one. */\n"
-        "#define MAVLINK_EXTERNAL_RX_STATUS\n"
+        "/* MAVLink's helpers (finalize, parser, signing, SHA-256) are only declared here; their one\n"
+        " * definition, with the one channel status (sequence counters), is firmware/lib/mavlink_lib/\n"
+        " * mavlink_lib.c. Firmware includes mavlink_lib.h, which includes this, so the build links it.\n"
+        " * (MAVLink's default, static inline helpers, gives every file that packs frames a copy.) */\n"
+        "#define MAVLINK_SEPARATE_HELPERS\n"
         "#include \"mavlink_types.h\"\n"
         "/* A SHA-256 fast on 8-bit cores, with MAVLink's API (firmware/lib/signing/agnav_sha256.h). */\n"
         "#define HAVE_MAVLINK_SHA256\n#include \"agnav_sha256.h\"\n"
-        "__attribute__((weak)) mavlink_status_t m_mavlink_status[MAVLINK_COMM_NUM_BUFFERS];\n"
-        "#include \"agnav/mavlink.h\"\n#endif\n"
+        "#include \"agnav/mavlink.h\"\n"
+        "/* MAVLink's CRC-16 (static inline; the fuzz harness repairs frames with it). */\n"
+        "#include \"checksum.h\"\n"
+        "/* The helpers mavlink_helpers.h defines and protocol.h leaves undeclared. */\n"
+        f"{_undeclared_helpers(out)}"
+        "#endif\n"
     )
     if not wrapper.exists() or wrapper.read_text(encoding="utf-8") != content:
         wrapper.write_text(content, encoding="utf-8")
     return wrapper
+
+
+def _undeclared_helpers(out: Path) -> str:
+    """Prototypes of the MAVLINK_HELPER functions that protocol.h's MAVLINK_SEPARATE_HELPERS list omits
+    (mavlink_sign_packet, mavlink_signature_check, mavlink_get_crc_extra, ...), one per line."""
+    c = out / "c"
+    protocol = (c / "protocol.h").read_text(encoding="utf-8")
+    block = re.search(r"#ifdef MAVLINK_SEPARATE_HELPERS(.*?)#else", protocol, re.S)
+    if not block:
+        raise SystemExit("generate: the MAVLINK_SEPARATE_HELPERS declarations not found in protocol.h")
+    declared = set(re.findall(r"(\w+)\s*\(", block.group(1)))
+    helpers = (c / "mavlink_helpers.h").read_text(encoding="utf-8")
+    lines = []
+    for m in re.finditer(r"^MAVLINK_HELPER\s+([^;{]*?\))\s*\{", helpers, re.M):
+        signature = " ".join(m.group(1).split())
+        name = re.search(r"(\w+)\s*\(", signature)
+        if name and name.group(1) not in declared:
+            lines.append(f"{signature};\n")
+    if not lines:
+        raise SystemExit("generate: no MAVLINK_HELPER definitions found in mavlink_helpers.h")
+    return "".join(lines)
 
 
 FAST_SHA256 = HERE.parent / "firmware" / "lib" / "signing" / "agnav_sha256.h"

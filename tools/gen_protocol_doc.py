@@ -4,8 +4,9 @@
     python tools/gen_protocol_doc.py            # writes docs/protocol.md
     python tools/gen_protocol_doc.py --check    # exit 1 if docs/protocol.md is out of date
 
-Only the standard library is used. The rates table is the firmware's scheduler (firmware/src/main.c)
-and is kept here by hand; everything else comes from the XML.
+Only the standard library is used. The rates table is what the firmware sends and accepts (its telemetry
+in firmware/lib/telemetry, run from the task table of firmware/src/main.c; the answers in firmware/lib/link
+and firmware/lib/calib_service) and is kept here by hand; everything else comes from the XML.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 XML = ROOT / "protocol" / "agnav.xml"
 OUT = ROOT / "docs" / "protocol.md"
 
-# name -> (direction, rate): what firmware/src/main.c sends and firmware/lib/link/link.c accepts
+# name -> (direction, rate): what firmware/lib/telemetry sends and firmware/lib/link/link.c accepts
 TRAFFIC = [
     ("AGNAV_BEHAVIOUR_STATUS", "robot -> host", "evaluated every 50 Hz control tick; sent when the layer, reason or a failsafe flag changes, else every 200 ms (5 Hz)"),
     ("AGNAV_ODOMETRY", "robot -> host", "10 Hz"),

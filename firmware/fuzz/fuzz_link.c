@@ -39,9 +39,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <agnav_mavlink.h>
-
 #include "fuzz_link.h"
+#include "mavlink_lib.h"
 #include "sil_api.h"
 #include "signing.h"
 

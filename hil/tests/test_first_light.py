@@ -13,7 +13,14 @@ from agnav_host.protocol import dialect
 
 REPO = Path(__file__).resolve().parents[2]
 HARNESS = REPO / "build" / "bin" / "avr_harness"
-ELF = REPO / ".pio" / "build" / "megaatmega2560" / "firmware.elf"
+
+
+def firmware_elf() -> Path:
+    """The ELF `pio run -e megaatmega2560` (started in REPO) writes: under $PLATFORMIO_BUILD_DIR when that is set,
+    as pio itself reads it (a relative one from REPO), else under .pio/build."""
+    set_dir = os.environ.get("PLATFORMIO_BUILD_DIR")
+    build_dir = REPO / Path(set_dir).expanduser() if set_dir else REPO / ".pio" / "build"
+    return build_dir / "megaatmega2560" / "firmware.elf"
 
 
 def build_avr_firmware():
@@ -25,7 +32,7 @@ def build_avr_firmware():
 
 
 def run_timestamped(seconds: float) -> list[tuple[int, int]]:
-    out = subprocess.run([str(HARNESS), "--timestamps", "--seconds", str(seconds), str(ELF)],
+    out = subprocess.run([str(HARNESS), "--timestamps", "--seconds", str(seconds), str(firmware_elf())],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 4, f"harness ended early (rc {out.returncode}): {out.stderr}"
     pairs = []

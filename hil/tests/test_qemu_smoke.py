@@ -12,7 +12,14 @@ import pytest
 from agnav_host.protocol import dialect
 
 REPO = Path(__file__).resolve().parents[2]
-ELF = REPO / ".pio" / "build" / "stm32f405" / "firmware.elf"
+
+
+def firmware_elf() -> Path:
+    """The ELF `pio run -e stm32f405` (started in REPO) writes: under $PLATFORMIO_BUILD_DIR when that is set,
+    as pio itself reads it (a relative one from REPO), else under .pio/build."""
+    set_dir = os.environ.get("PLATFORMIO_BUILD_DIR")
+    build_dir = REPO / Path(set_dir).expanduser() if set_dir else REPO / ".pio" / "build"
+    return build_dir / "stm32f405" / "firmware.elf"
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +27,7 @@ def arm_firmware() -> Path:
     env = dict(os.environ, PLATFORMIO_CORE_DIR=str(REPO / ".pio-core"), PLATFORMIO_DISABLE_UPGRADE_CHECK="true")
     subprocess.run([str(REPO / ".venv" / "bin" / "pio"), "run", "-s", "-e", "stm32f405"], cwd=REPO, env=env,
                    check=True, stdout=subprocess.DEVNULL)
-    return ELF
+    return firmware_elf()
 
 
 class _Session:

@@ -12,7 +12,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include <agnav_mavlink.h>
+#include "mavlink_lib.h"
 
 #ifdef __cplusplus
 extern "C" {

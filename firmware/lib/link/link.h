@@ -33,8 +33,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include <agnav_mavlink.h>
-
+#include "mavlink_lib.h"
 #include "params.h"
 #include "units.h"
 

@@ -13,9 +13,8 @@
 #ifndef AGNAV_LINK_CALIB_H
 #define AGNAV_LINK_CALIB_H
 
-#include <agnav_mavlink.h>
-
 #include "calib.h"
+#include "mavlink_lib.h"
 
 /* Returns 0 on success, AGNAV_CALIB_BAD_TABLE when the points cannot form two sides
  * (too many points on a side, or a zero point that fits neither side). */

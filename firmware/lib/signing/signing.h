@@ -31,8 +31,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include <agnav_mavlink.h>
-
+#include "mavlink_lib.h"
 #include "params.h"
 
 #define SIGNING_KEY_ADDR 0x0040u

@@ -5,6 +5,7 @@
 
 #include "calib.h"
 #include "crc16.h"
+#include "eeprom_record.h"
 #include "hal.h"
 #include "sim/hal_sim.h"
 #include "unity.h"
@@ -215,20 +216,8 @@ static void test_calib_default_tables_pass_validation(void)
 
 /* ---- EEPROM ---------------------------------------------------------------- */
 
-/* The record of the active tables as lib/storage writes it into a slot: calib_record_byte() for the
- * payload, then its CRC, little-endian. */
-static void write_record(uint16_t addr)
-{
-    uint16_t crc = CRC16_CCITT_FALSE_INIT;
-    uint8_t *ee = sim_eeprom_bytes();
-    for (uint16_t i = 0; i + 2u < CALIB_RECORD_BYTES; i++) {
-        uint8_t b = calib_record_byte(i);
-        crc = crc16_ccitt_false_update(crc, &b, 1u);
-        ee[addr + i] = b;
-    }
-    ee[addr + CALIB_RECORD_BYTES - 2u] = (uint8_t)crc;
-    ee[addr + CALIB_RECORD_BYTES - 1u] = (uint8_t)(crc >> 8);
-}
+/* The record of the active tables as lib/storage writes it into a slot. */
+static void write_record(uint16_t addr) { eeprom_record_write(addr, CALIB_RECORD_BYTES, calib_record_byte); }
 
 /* A save as lib/storage ends it: both slots written and read back. */
 static void save(void)

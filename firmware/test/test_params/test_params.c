@@ -1,8 +1,8 @@
 #include <unity.h>
 
+#include "eeprom_record.h"
 #include "hal.h"
 #include "params.h"
-#include "crc16.h"
 #include "sim/hal_sim.h"
 
 static uint16_t s_timeout_ms;
@@ -33,21 +33,8 @@ void setUp(void)
 
 void tearDown(void) {}
 
-/* The record as lib/storage writes it into a slot: params_record_byte() for the payload, then the
- * payload's CRC, little-endian. */
-static void write_record(uint16_t addr)
-{
-    uint16_t n = params_record_bytes();
-    uint16_t crc = CRC16_CCITT_FALSE_INIT;
-    uint8_t *ee = sim_eeprom_bytes();
-    for (uint16_t i = 0; i + 2u < n; i++) {
-        uint8_t b = params_record_byte(i);
-        crc = crc16_ccitt_false_update(crc, &b, 1u);
-        ee[addr + i] = b;
-    }
-    ee[addr + n - 2u] = (uint8_t)crc;
-    ee[addr + n - 1u] = (uint8_t)(crc >> 8);
-}
+/* The parameter record as lib/storage writes it into a slot. */
+static void write_record(uint16_t addr) { eeprom_record_write(addr, params_record_bytes(), params_record_byte); }
 
 static void test_params_get_reads_each_type_from_module_variables(void)
 {

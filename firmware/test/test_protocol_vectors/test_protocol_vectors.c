@@ -3,6 +3,7 @@
 #include <string.h>
 #include <unity.h>
 
+#include "mavlink_lib.h"  /* links MAVLink's helpers (lib/mavlink_lib) */
 #include <agnav_vectors_test.h>
 
 void setUp(void) {}

@@ -1,6 +1,6 @@
 """A fake robot that speaks the AgNav protocol over TCP on 127.0.0.1, for tests and demos.
 
-It mirrors what firmware/src/main.c and firmware/lib/link/link.c do on the wire (telemetry rates:
+It mirrors what firmware/lib/telemetry and firmware/lib/link/link.c do on the wire (its telemetry rates:
 AGNAV_BEHAVIOUR_STATUS 50 Hz; AGNAV_ODOMETRY, AGNAV_ENCODER_STATUS, AGNAV_SONAR_RING 10 Hz;
 HEARTBEAT and NAMED_VALUE_INT 1 Hz; PARAM_*, COMMAND_LONG, calibration requests) and drives a
 kinematic Ackermann car (ref-003 geometry) whose *true* actuator response is a pair of
@@ -38,7 +38,7 @@ from .calib_wire import TABLE_SPEED, TABLE_SPEED_RIGHT, TABLE_STEER, WireTable, 
 
 __all__ = ["FakeRobot", "FIRMWARE_PARAMS"]
 
-#: name -> (default, min, max): the PARAMS table of firmware/src/main.c
+#: name -> (default, min, max): the firmware's parameter rows (firmware/lib/<module>/<module>_params.c)
 FIRMWARE_PARAMS: dict[str, tuple[int, int, int]] = {
     "SYSID_THISMAV": (1, 1, 250), "DRIVE_KIND": (0, 0, 1), "ENC_COUNT": (2, 1, 4), "ENC_MODE": (1, 0, 1),
     "ENC_NM_PER_CNT": (13550000, 1000, 16000000), "TRACK_MM": (191, 50, 2000), "WHEELBASE_MM": (174, 50, 2000),

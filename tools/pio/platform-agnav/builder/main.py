@@ -48,8 +48,7 @@ if target == "avr":
     #                             helpers into task_control/link_feed/main, where the register
     #                             pressure costs more code than the calls (and no tick time)
     # Together ~2.9 KB less flash than -Os -flto alone, and no longer control tick.
-    # (-fno-inline-small-functions would save 0.4 KB more but costs ~2.4 k cycles per tick;
-    # per-module flags break LTO's identical-code folding of the MAVLink helpers: +2.2 KB.)
+    # (-fno-inline-small-functions would save 0.4 KB more but costs ~2.4 k cycles per tick.)
     size_flags = [
         "-mrelax", "-mcall-prologues", "-mstrict-X", "-fno-move-loop-invariants", "-fno-tree-loop-optimize",
         "-fno-tree-vrp", "-fno-inline-functions-called-once",
