@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -46,14 +47,31 @@ def main(argv: list[str] | None = None) -> int:
 
     print("| run | end | driven m | host pose error at the end m | heading error deg | error / distance % |")
     print("|---|---|---|---|---|---|")
+    cost: list[float] = []
     if "sim" in only:
+        from agnav_host.localisation.scan_localiser import ScanLocaliser
+
+        scan = ScanLocaliser.scan
+
+        def timed_scan(self, *a, **k):  # type: ignore[no-untyped-def]
+            t0 = time.thread_time()
+            out = scan(self, *a, **k)
+            cost.append(time.thread_time() - t0)
+            return out
+
+        ScanLocaliser.scan = timed_scan  # type: ignore[method-assign]
         sc = load_scenario("greenhouse_cycles")
         for loc in ("scan", "odometry"):
             _row(f"simulator, greenhouse_cycles, him, --localise {loc}", run_scenario(sc, "him", 0, localise=loc))
+        ScanLocaliser.scan = scan  # type: ignore[method-assign]
     if "rows" in only:
         for name, dur in (("curvy_row", 200.0),):
             _row(f"simulator, {name}, proximity, --localise scan",
                  run_scenario(load_scenario(name), "proximity", 0, dur, localise="scan"))
+    if cost:
+        c = 1e3 * np.array(cost)
+        print(f"\nlocaliser CPU per scan (greenhouse_cycles, simulator, {len(c)} scans at 15 Hz): mean {c.mean():.1f} ms, "
+              f"median {np.median(c):.1f}, p99 {np.percentile(c, 99):.1f}, max {c.max():.1f} ms\n")
     if "sil" in only:
         from agnav_host.sil.session import run_sil_scenario
 

@@ -195,3 +195,24 @@ def test_agnav_run_refuses_an_impossible_localiser_before_driving(extra, message
                    "--goal", "1,0", *extra])
     err = capsys.readouterr().err
     assert rc == 2 and message in err and "Traceback" not in err
+
+
+def test_a_curved_row_driven_once_drifts_less_than_half_a_percent_of_the_distance():
+    """The 50 m curvy row (a hedge of overlapping bushes seen from one side, no revisit) on drifting odometry."""
+    sc = load_scenario("curvy_row")
+    run = run_scenario(sc, "proximity", 0, 200.0, localise="scan")
+    believed, true = run.believed
+    driven = float(np.hypot(*np.diff(run.trajectory[:, 1:3], axis=0).T).sum())
+    assert run.end_reason == "arrived" and driven > 45.0
+    assert _err(believed, true) < 0.005 * driven
+    odo = run_scenario(sc, "proximity", 0, 200.0, localise="odometry")
+    assert _err(*odo.believed) > 0.005 * driven  # the odometry alone does not
+
+
+def test_a_saved_map_without_occupied_cells_is_refused(lab, tmp_path):
+    from agnav_host.localisation.occupancy import MapFileError, OccupancyGrid
+
+    grid = OccupancyGrid(np.zeros((20, 20), dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    yaml, _ = save_map(grid, tmp_path / "empty.yaml")
+    with pytest.raises(MapFileError, match="nothing to localise against"):
+        scan_localiser_for(lab.start, lab.laser.mount, str(yaml))

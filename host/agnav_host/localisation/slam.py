@@ -40,6 +40,7 @@ from scipy.sparse.csgraph import dijkstra
 from ..types import FloatArray
 from .pose_graph import PoseGraph
 from .scan_match import (
+    IcpResult,
     LikelihoodGrid,
     PointMap,
     compose,
@@ -180,6 +181,7 @@ class Slam:
         self.loops_conflicting = 0
         # every loop match tried: (k, j, search score, ambiguity[, fine score, overlap, rms m, x, y, yaw])
         self.loop_log: list[tuple[float, ...]] = []
+        self.last_match: IcpResult | None = None  # the front end's match of the last scan (None: none tried)
 
     # ---- front end --------------------------------------------------------------------------------------
 
@@ -202,8 +204,19 @@ class Slam:
         pts = scan_points(scan.ranges_m, scan.angle_min_rad, scan.angle_increment_rad, scan.mount,
                           p.min_range_m, min(p.max_range_m, scan.range_max_m))
         pts = voxel_filter(pts, p.scan_voxel_m)
+        return self.add_points(pts, scan.t_s, scan.t_text, scan.mount[:2], scan.odom, t0=t0)
+
+    def add_points(self, pts: FloatArray, t_s: float, t_text: str, origin: FloatArray, odom: FloatArray | None,
+                   guess: FloatArray | None = None, t0: float | None = None) -> FloatArray:
+        """Add one scan as its points in the robot frame (thinned), the laser's position on the robot
+        (``origin``) and the odometry pose (None: none); returns its pose estimate. ``guess``: a pose found by
+        another search (re-localising) that replaces the odometry's prediction; the odometry then neither
+        draws the match nor enters the edge."""
+        t0 = time.perf_counter() if t0 is None else t0
+        p = self.p
         k = len(self.graph.poses)
-        odom = None if scan.odom is None else np.asarray(scan.odom, dtype=float)
+        odom = None if odom is None else np.asarray(odom, dtype=float)
+        self.last_match = None
         if odom is None:
             self.no_odometry += 1
         if k == 0:
@@ -215,13 +228,15 @@ class Slam:
             prev_odom = self._odom[k - 1]
             dz = relative(prev_odom, odom) if odom is not None and prev_odom is not None else None
             pred = compose(prev, dz) if dz is not None else prev.copy()
+            if guess is not None:
+                pred, dz = np.asarray(guess, dtype=float), None
             ref = self._local_map(k)
             pose = pred
             matched = None
             if ref is not None and len(pts) >= 10:
                 prior_info = None
                 if dz is not None:
-                    prior_info = _odom_info(dz, p) * p.point_sigma_m**2 * (len(pts) / p.prior_dof)
+                    prior_info = _odom_info(dz, p) * p.point_sigma_m**2 * max(len(pts) / p.prior_dof, 1.0)
                 res = icp_point_to_line(pts, ref, pred, max_dist_m=p.icp_max_dist_m, final_dist_m=p.icp_final_dist_m,
                                         prior=pred if dz is not None else None, prior_info=prior_info)
                 if res.overlap < p.min_overlap or dz is None:
@@ -233,6 +248,7 @@ class Slam:
                     if res2.overlap > res.overlap:
                         res = res2
                         self.relocalised += 1
+                self.last_match = res
                 if res.overlap >= 0.3:
                     matched = res
                     pose = res.pose
@@ -251,9 +267,9 @@ class Slam:
                 self.graph.add_edge(k - 1, k, np.zeros(3), np.diag([1.0, 1.0, 1.0]))
             self._link(k - 1, k, max(step, 1e-3))
         self.points.append(pts)
-        self.origins.append(scan.mount[:2].copy())
-        self.t_s.append(scan.t_s)
-        self.t_text.append(scan.t_text)
+        self.origins.append(np.array(origin, dtype=float))
+        self.t_s.append(t_s)
+        self.t_text.append(t_text)
         self._odom.append(odom)
         if k > 0 and k - self._last_loop_try >= p.loop_every:
             self._last_loop_try = k
