@@ -303,7 +303,7 @@ def _cmd_run(ns: argparse.Namespace) -> int:
         _err("run", "--landmarks: localising on posts needs the horizontal laser (--laser URL)")
         return 2
     localise = getattr(ns, "localise", None)
-    if localise in ("scan", "posts") and "laser" not in roles:
+    if localise in ("scan", "poles", "posts") and "laser" not in roles:
         _err("run", f"--localise {localise}: localising needs the horizontal laser (--laser URL)")
         return 2
     if localise == "posts" and landmarks is None:
@@ -532,6 +532,10 @@ def _host_controlled(ns: argparse.Namespace, cfg: Any, planner_name: str, goals:
             from ..localisation.scan_localiser import scan_localiser_for
 
             localiser = scan_localiser_for(start, laser.mount.pose, ns.map)
+        elif getattr(ns, "localise", None) == "poles" and laser is not None:  # poles learnt as it drives
+            from ..localisation.pole_slam import PoleSlam
+
+            localiser = PoleSlam(start, laser.mount.pose)
         elif landmarks is not None and laser is not None and getattr(ns, "localise", None) != "odometry":
             from ..localisation import localiser_for
 
@@ -673,9 +677,10 @@ subcommand("run", help="drive a robot (or a SIL over tcp:) with any controller, 
                (("--landmarks",), {"default": None, "metavar": "FILE",
                                    "help": "surveyed marker posts to localise on, CSV x_m,y_m,radius_m (default: [run] "
                                            "landmarks_file; none = odometry)"}),
-               (("--localise",), {"choices": ["scan", "posts", "odometry"], "default": None,
+               (("--localise",), {"choices": ["scan", "poles", "posts", "odometry"], "default": None,
                                   "help": "how the host localises: scan (laser scan matching against --map or a map "
-                                          "built online), posts (--landmarks), odometry (none); default: posts when "
+                                          "built online), poles (poles and trunks learnt online), posts "
+                                          "(--landmarks), odometry (none); default: posts when "
                                           "--landmarks is given, else odometry"}),
                (("--map",), {"default": None, "metavar": "FILE.yaml",
                              "help": "a saved map (map_server YAML + PGM, e.g. from agnav slam) for --localise scan"}),

@@ -61,9 +61,10 @@ def _planner_names() -> list[str]:
                                    "firmware (native SIL) between the host planner and the robot, with the radio link "
                                    "model; also writes link.tlog and firmware.csv; avr: the same with the real "
                                    "ATmega2560 ELF under simavr (slower: keep --duration short)"}),
-        (("--localise",), {"choices": ["scan", "posts", "odometry"], "default": None,
+        (("--localise",), {"choices": ["scan", "poles", "posts", "odometry"], "default": None,
                            "help": "the host plans on wheel odometry fused by: scan (scan matching against --map or a "
-                                   "map built online), posts (the scenario's surveyed posts), odometry (none); "
+                                   "map built online), poles (poles and trunks learnt online), posts (the scenario's "
+                                   "surveyed posts), odometry (none); "
                                    "default: the true pose (ideal), the posts when listed (sil)"}),
         (("--map",), {"default": None, "metavar": "FILE.yaml",
                       "help": "a saved map (map_server YAML + PGM, e.g. from agnav slam) for --localise scan"}),

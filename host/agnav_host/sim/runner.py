@@ -119,7 +119,7 @@ def _standin_params(sc: Scenario) -> GoalSeekParams:
     return from_spec(robot_spec(sc))
 
 
-LOCALISERS = ("scan", "posts", "odometry")
+LOCALISERS = ("scan", "poles", "posts", "odometry")
 
 
 class DriftingOdometry:
@@ -168,6 +168,10 @@ def make_localiser(sc: Scenario, localise: str, map_yaml: str | None = None) -> 
         if loc is None:
             raise ValueError("localising on posts needs the scenario's surveyed posts (meta.landmarks)")
         return loc
+    if localise == "poles":
+        from ..localisation.pole_slam import PoleSlam
+
+        return PoleSlam(sc.start, sc.laser.mount)
     from ..localisation.scan_localiser import scan_localiser_for
 
     return scan_localiser_for(sc.start, sc.laser.mount, map_yaml)
@@ -198,7 +202,8 @@ def run_scenario(
 
     ``localise`` (None: the controller gets the true pose): the host plans on wheel odometry (the true motion
     with :class:`DriftingOdometry`'s errors) fused by a localiser: ``scan`` (scan matching against ``map_yaml``
-    or a map built online, :mod:`agnav_host.localisation.scan_localiser`), ``posts`` (the scenario's
+    or a map built online, :mod:`agnav_host.localisation.scan_localiser`), ``poles`` (poles and trunks learnt online,
+    :mod:`agnav_host.localisation.pole_slam`), ``posts`` (the scenario's
     ``meta.landmarks``), ``odometry`` (none); a scenario's ``meta.localise`` (and ``meta.map``) when None.
     """
     if goal is not None:
