@@ -7,8 +7,8 @@ extrapolation as :class:`~.pose_filter.PoseFilter`). In each scan :func:`detect_
 returns at most ``max_width_m`` wide that stand at least ``jump_m`` in front of both neighbouring beams. A
 pole's radius is half the run's width plus one beam spacing at its range (the first and last returns miss the
 silhouette by about a beam), and its centre is the circle of that radius fitted to the returns
-(:func:`~.landmarks.fit_post_centre`): without the beam term the centre comes out 16 mm nearer at 3-4 m than
-at 1 m, and a robot that drives towards its poles then believes it has moved less than it has.
+(:func:`~.landmarks.fit_post_centre`): without the beam term the centre comes out about 18 mm nearer at 3-4 m
+than at 1 m, and a robot that drives towards its poles then believes it has moved less than it has.
 
 A sighting is matched to the learnt pole whose predicted centre is within ``gate_m`` and whose Mahalanobis
 distance is below ``gate_chi2``; it then corrects the pose and every pole through their covariance. A
