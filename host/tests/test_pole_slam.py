@@ -151,3 +151,32 @@ def test_agnav_run_refuses_poles_without_a_laser_before_driving(capsys):
     rc = cli.main(["run", "--device", "/dev/null", "--planner", "him", "--goal", "1,0", "--localise", "poles"])
     err = capsys.readouterr().err
     assert rc == 2 and "needs" in err and "laser" in err and "Traceback" not in err
+
+
+def test_a_straight_wall_is_found_as_a_line_and_a_row_of_poles_is_not_one():
+    from agnav_host.localisation.pole_slam import detect_walls
+
+    a = ANGLES
+    rng = np.random.default_rng(3)
+    wall = np.where(np.abs(a - 0.3) < np.radians(40), 2.0 / np.cos(a - 0.3), np.nan) + rng.normal(0, 0.01, len(a))
+    seen = detect_walls(wall, a, 4.0)
+    assert len(seen) == 1
+    assert abs(seen[0].rho_m - 2.0) < 0.01 and abs(math.remainder(seen[0].alpha_rad - 0.3, 2 * math.pi)) < math.radians(0.5)
+    fence = _ray_circles([(2.0, y, 0.05) for y in np.arange(-1.5, 1.6, 0.4)], a)
+    assert detect_walls(fence, a, 4.0) == []
+
+
+def test_a_wall_beside_the_route_is_learnt_and_holds_the_distance_to_it():
+    """No pole at all: a wall 1.5 m to the left of a straight drive; the odometry creeps 2 cm to the left per
+    metre that the robot does not."""
+    loc = PoleSlam(Pose2D())
+    a = ANGLES
+    t = 0.0
+    for _ in range(180):  # 6 m at 0.5 m/s
+        x = 0.5 * t
+        loc.odometry(x, 0.02 * x, 0.0, t, 0.5, 0.0)
+        r = np.where((a > 0.2) & (a < math.pi - 0.2), 1.5 / np.maximum(np.sin(a), 1e-9), np.nan)  # from (x, 0, 0)
+        loc.scan(np.where(r < 4.0, r, np.nan), a, t, 4.0)
+        t += 1 / 15
+    assert len(loc.walls) == 1 and len(loc.poles) == 0
+    assert abs(loc.pose_at(t - 1 / 15).y_m) < 0.06  # half the odometry's 0.12 m

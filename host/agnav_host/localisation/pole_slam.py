@@ -34,7 +34,7 @@ from ..types import FloatArray, Pose2D, norm_angle_rad
 from .landmarks import fit_post_centre
 from .pose_filter import FilterParams, extrapolate, relative
 
-__all__ = ["PoleSlamParams", "PoleSighting", "PoleSlam", "detect_poles"]
+__all__ = ["PoleSlamParams", "PoleSighting", "WallSighting", "PoleSlam", "detect_poles", "detect_walls"]
 
 OK, SLOW, LOST = "ok", "slow", "lost"
 
@@ -64,6 +64,14 @@ class PoleSlamParams:
     max_poles: int = 300
     range_sigma_m: float = 0.03  # a sighting's noise: the fitted centres of 16 cm poles scatter 11-24 mm in range
     bearing_sigma_rad: float = math.radians(0.5)  # and 0.2-0.4 deg in bearing beyond 1 m (TiM310, 1 deg beams)
+    # walls: straight stretches at least wall_min_m long of wall_min_returns returns, fitted within wall_rms_m
+    walls: bool = True
+    wall_min_m: float = 1.0
+    wall_min_returns: int = 10
+    wall_rms_m: float = 0.02
+    wall_sigma_m: float = 0.03
+    wall_sigma_rad: float = math.radians(0.6)
+    wall_gate_rad: float = math.radians(10.0)
     slow_after_m: float = 2.0
     lost_after_m: float = 5.0
 
@@ -124,11 +132,85 @@ def detect_poles(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: floa
     return out
 
 
+@dataclass(frozen=True)
+class WallSighting:
+    """A straight wall in a scan, as the line x cos(alpha) + y sin(alpha) = rho in the laser frame (rho >= 0 m,
+    alpha the direction of the line's normal from the laser, rad), its length (m) and returns."""
+
+    rho_m: float
+    alpha_rad: float
+    length_m: float
+    returns: int
+
+
+def _line_fit(xs: FloatArray, ys: FloatArray) -> tuple[float, float, float]:
+    """Total least squares: (rho >= 0, alpha, rms m) of the line through the points."""
+    mx, my = float(xs.mean()), float(ys.mean())
+    dx, dy = xs - mx, ys - my
+    cxx, cyy, cxy = float((dx * dx).mean()), float((dy * dy).mean()), float((dx * dy).mean())
+    alpha = 0.5 * math.atan2(-2.0 * cxy, cyy - cxx)  # the normal: the direction of least spread
+    rho = mx * math.cos(alpha) + my * math.sin(alpha)
+    if rho < 0:
+        rho, alpha = -rho, alpha + math.pi
+    res = xs * math.cos(alpha) + ys * math.sin(alpha) - rho
+    return rho, norm_angle_rad(alpha), float(np.sqrt(np.mean(res**2)))
+
+
+def detect_walls(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: float = math.inf,
+                 params: PoleSlamParams | None = None) -> list[WallSighting]:
+    """The straight walls of one scan (laser frame): runs of returns without a jump, split where they bend
+    (split-and-merge), kept when a stretch is long, has enough returns and fits a line closely."""
+    p = params or PoleSlamParams()
+    r = np.asarray(ranges_m, dtype=float)
+    a = np.asarray(angles_rad, dtype=float)
+    ok = np.isfinite(r) & (r > 0.05) & (r < min(range_max_m, p.max_range_m))
+    xs_all, ys_all = np.where(ok, r, 0.0) * np.cos(a), np.where(ok, r, 0.0) * np.sin(a)
+    out: list[WallSighting] = []
+
+    def split(i: int, j: int) -> None:
+        if j - i + 1 < p.wall_min_returns:
+            return
+        x0, y0, x1, y1 = xs_all[i], ys_all[i], xs_all[j], ys_all[j]
+        length = math.hypot(x1 - x0, y1 - y0)
+        if length < p.wall_min_m:
+            return
+        xs, ys = xs_all[i:j + 1], ys_all[i:j + 1]
+        dev = np.abs((xs - x0) * (y1 - y0) - (ys - y0) * (x1 - x0)) / max(length, 1e-9)
+        k = int(np.argmax(dev))
+        if dev[k] > 3.0 * p.wall_rms_m and 0 < k < j - i:
+            split(i, i + k)
+            split(i + k, j)
+            return
+        rho, alpha, rms = _line_fit(xs, ys)
+        if rms <= p.wall_rms_m:
+            out.append(WallSighting(rho, alpha, length, j - i + 1))
+
+    n = len(r)
+    i = 0
+    while i < n:
+        if not ok[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and ok[j + 1] and math.hypot(xs_all[j + 1] - xs_all[j], ys_all[j + 1] - ys_all[j]) < 0.1:
+            j += 1
+        split(i, j)
+        i = j + 1
+    return out
+
+
 @dataclass
 class _Candidate:
     xy: list[tuple[float, float]]
     last_t_s: float
     sighting: PoleSighting
+
+
+@dataclass
+class _WallCandidate:
+    lines: list[FloatArray]
+    last_t_s: float
+    sighting: WallSighting
 
 
 @dataclass
@@ -145,7 +227,9 @@ class PoleSlam:
         self.X: FloatArray = np.array([self.start.x_m, self.start.y_m, self.start.yaw_rad])
         # the start pose is the origin of the map the poles are learnt in: known to the millimetre
         self.P: FloatArray = np.diag([1e-6, 1e-6, 1e-8])
-        self.radii: list[float] = []
+        self.radii: list[float] = []  # per landmark: a pole's radius (0 for a wall)
+        self.kinds: list[str] = []  # per landmark: "pole" (centre x, y) or "wall" (rho, alpha in the world)
+        self._wall_cands: list[_WallCandidate] = []
         self.stamp_s: float | None = None
         self.speed_m_s = 0.0
         self.yaw_rate_rad_s = 0.0
@@ -177,10 +261,8 @@ class PoleSlam:
         return q if self.stamp_s is None else extrapolate(q, self.speed_m_s, self.yaw_rate_rad_s, self._dt(t_s))
 
     def scan(self, ranges_m: FloatArray, angles_rad: FloatArray, t_s: float, range_max_m: float = math.inf) -> int:
-        """Correct with the poles of one scan taken at ``t_s``; returns how many matched."""
+        """Correct with the poles and walls of one scan taken at ``t_s``; returns how many matched."""
         seen = detect_poles(ranges_m, angles_rad, range_max_m, self.params)
-        if not seen:
-            return 0
         dt = self._dt(t_s)
         R = np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
         used = 0
@@ -190,15 +272,23 @@ class PoleSlam:
             best = self._best_match(sg, dt, R, taken)
             if best is not None and best[0] < self.params.gate_chi2:
                 _, k, nu, H, S = best
-                K = self.P @ H.T @ np.linalg.inv(S)
-                self.X = self.X + K @ nu
-                self.X[2] = norm_angle_rad(float(self.X[2]))
-                IKH = np.eye(len(self.X)) - K @ H
-                self.P = IKH @ self.P @ IKH.T + K @ R @ K.T  # Joseph form
+                self._update(nu, H, S, R)
                 taken.add(k)
                 used += 1
             elif best is None or best[0] > self.params.new_chi2:
                 unknown.append(sg)
+        walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
+        Rw = np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
+        new_walls: list[WallSighting] = []
+        for ws in walls:
+            bw = self._best_wall(ws, dt, Rw, taken)
+            if bw is not None and bw[0] < self.params.gate_chi2:
+                _, k, nu, H, S = bw
+                self._update(nu, H, S, Rw)
+                taken.add(k)
+                used += 1
+            elif bw is None or bw[0] > self.params.new_chi2:
+                new_walls.append(ws)
         if used:
             self.sighted += used
             self.uncorrected_m = 0.0
@@ -206,7 +296,15 @@ class PoleSlam:
                 self.state, self.reason = OK, ""
         if self.state != LOST:  # a robot far off its estimate would learn poles at the wrong place
             self._learn(unknown, t_s, dt, R)
+            self._learn_walls(new_walls, t_s, dt, Rw)
         return used
+
+    def _update(self, nu: FloatArray, H: FloatArray, S: FloatArray, R: FloatArray) -> None:
+        K = self.P @ H.T @ np.linalg.inv(S)
+        self.X = self.X + K @ nu
+        self.X[2] = norm_angle_rad(float(self.X[2]))
+        IKH = np.eye(len(self.X)) - K @ H
+        self.P = IKH @ self.P @ IKH.T + K @ R @ K.T  # Joseph form
 
     # ---- state -----------------------------------------------------------------------------------
     def status(self) -> tuple[str, str]:
@@ -222,8 +320,17 @@ class PoleSlam:
     @property
     def poles(self) -> FloatArray:
         """The learnt poles, (n, 3): centre x, y (m, world frame) and radius (m)."""
-        xy = self.X[3:].reshape(-1, 2)
-        return np.column_stack([xy, np.asarray(self.radii, dtype=float)]) if len(xy) else np.zeros((0, 3))
+        idx = [k for k, kind in enumerate(self.kinds) if kind == "pole"]
+        if not idx:
+            return np.zeros((0, 3))
+        xy = self.X[3:].reshape(-1, 2)[idx]
+        return np.column_stack([xy, np.asarray(self.radii, dtype=float)[idx]])
+
+    @property
+    def walls(self) -> FloatArray:
+        """The learnt walls, (n, 2): the line x cos(alpha) + y sin(alpha) = rho in the world (rho m, alpha rad)."""
+        idx = [k for k, kind in enumerate(self.kinds) if kind == "wall"]
+        return self.X[3:].reshape(-1, 2)[idx] if idx else np.zeros((0, 2))
 
     def _check_state(self) -> None:
         d = self.uncorrected_m
@@ -258,28 +365,56 @@ class PoleSlam:
         q = extrapolate(Pose2D(float(pose[0]), float(pose[1]), float(pose[2])), self.speed_m_s, self.yaw_rate_rad_s, dt)
         return q.compose(self.mount)
 
-    def _h(self, pose: FloatArray, pole: FloatArray, dt: float) -> FloatArray:
+    def _h(self, pose: FloatArray, lm: FloatArray, dt: float, kind: str = "pole") -> FloatArray:
+        """What the laser sees of landmark ``lm`` from ``pose``: a pole's range and bearing, a wall's (rho, alpha)."""
         s = self._sensor(pose, dt)
-        dx, dy = float(pole[0]) - s.x_m, float(pole[1]) - s.y_m
+        if kind == "wall":
+            rho = float(lm[0]) - (s.x_m * math.cos(float(lm[1])) + s.y_m * math.sin(float(lm[1])))
+            alpha = float(lm[1]) - s.yaw_rad
+            if rho < 0:
+                rho, alpha = -rho, alpha + math.pi
+            return np.array([rho, norm_angle_rad(alpha)])
+        dx, dy = float(lm[0]) - s.x_m, float(lm[1]) - s.y_m
         return np.array([math.hypot(dx, dy), norm_angle_rad(math.atan2(dy, dx) - s.yaw_rad)])
 
     def _jacobian(self, k: int, dt: float) -> FloatArray:
         H = np.zeros((2, len(self.X)))
-        pose, pole = self.X[:3].copy(), self.X[3 + 2 * k: 5 + 2 * k].copy()
-        z0 = self._h(pose, pole, dt)
+        kind = self.kinds[k]
+        pose, lm = self.X[:3].copy(), self.X[3 + 2 * k: 5 + 2 * k].copy()
+        z0 = self._h(pose, lm, dt, kind)
         for i, eps in enumerate((1e-4, 1e-4, 1e-5)):
             d = np.zeros(3)
             d[i] = eps
-            dz = self._h(pose + d, pole, dt) - z0
+            dz = self._h(pose + d, lm, dt, kind) - z0
             dz[1] = norm_angle_rad(float(dz[1]))
             H[:, i] = dz / eps
-        for i in range(2):
+        for i, eps in enumerate((1e-4, 1e-5) if kind == "wall" else (1e-4, 1e-4)):
             e = np.zeros(2)
-            e[i] = 1e-4
-            dz = self._h(pose, pole + e, dt) - z0
+            e[i] = eps
+            dz = self._h(pose, lm + e, dt, kind) - z0
             dz[1] = norm_angle_rad(float(dz[1]))
-            H[:, 3 + 2 * k + i] = dz / 1e-4
+            H[:, 3 + 2 * k + i] = dz / eps
         return H
+
+    def _best_wall(self, ws: WallSighting, dt: float, R: FloatArray,
+                   taken: set[int]) -> tuple[float, int, FloatArray, FloatArray, FloatArray] | None:
+        """The learnt wall nearest the sighting in Mahalanobis distance among those within 0.3 m and
+        ``wall_gate_rad``."""
+        best: tuple[float, int, FloatArray, FloatArray, FloatArray] | None = None
+        pose = self.X[:3]
+        for k, kind in enumerate(self.kinds):
+            if kind != "wall" or k in taken:
+                continue
+            zh = self._h(pose, self.X[3 + 2 * k: 5 + 2 * k], dt, "wall")
+            nu = np.array([ws.rho_m - zh[0], norm_angle_rad(ws.alpha_rad - float(zh[1]))])
+            if abs(nu[0]) > 0.3 or abs(nu[1]) > self.params.wall_gate_rad:
+                continue
+            H = self._jacobian(k, dt)
+            S = H @ self.P @ H.T + R
+            m = float(nu @ np.linalg.solve(S, nu))
+            if best is None or m < best[0]:
+                best = (m, k, nu, H, S)
+        return best
 
     def _best_match(self, sg: PoleSighting, dt: float, R: FloatArray,
                     taken: set[int]) -> tuple[float, int, FloatArray, FloatArray, FloatArray] | None:
@@ -287,8 +422,8 @@ class PoleSlam:
         best: tuple[float, int, FloatArray, FloatArray, FloatArray] | None = None
         pose = self.X[:3]
         gate = self.params.gate_m
-        for k in range(len(self.radii)):
-            if k in taken:
+        for k, kind in enumerate(self.kinds):
+            if kind != "pole" or k in taken:
                 continue
             zh = self._h(pose, self.X[3 + 2 * k: 5 + 2 * k], dt)
             nu = np.array([sg.range_m - zh[0], norm_angle_rad(sg.bearing_rad - float(zh[1]))])
@@ -324,18 +459,55 @@ class PoleSlam:
             if len(xy) < p.confirm_sightings:
                 continue
             if float(xy.std(axis=0).max()) < p.confirm_sd_m and math.hypot(*(xy[-1] - xy[0])) < p.confirm_drift_m:
-                if len(self.radii) < p.max_poles:
+                if len(self.kinds) < p.max_poles:
                     self._add_pole(sg, dt, R)
                 self._cands.remove(hit)
             elif len(xy) > 2 * p.confirm_sightings + 2:  # it keeps moving: not a pole
                 self._cands.remove(hit)
 
+    def _wall_in_world(self, pose: FloatArray, z: FloatArray, dt: float) -> FloatArray:
+        s = self._sensor(pose, dt)
+        alpha = float(z[1]) + s.yaw_rad
+        rho = float(z[0]) + s.x_m * math.cos(alpha) + s.y_m * math.sin(alpha)
+        if rho < 0:
+            rho, alpha = -rho, alpha + math.pi
+        return np.array([rho, norm_angle_rad(alpha)])
+
+    def _learn_walls(self, unknown: list[WallSighting], t_s: float, dt: float, R: FloatArray) -> None:
+        p = self.params
+        self._wall_cands = [c for c in self._wall_cands if t_s - c.last_t_s < p.candidate_timeout_s]
+        pose = self.X[:3]
+        for ws in unknown:
+            w = self._wall_in_world(pose, np.array([ws.rho_m, ws.alpha_rad]), dt)
+            hit = None
+            for c in self._wall_cands:
+                m = c.lines[-1]
+                if abs(m[0] - w[0]) < 0.1 and abs(norm_angle_rad(float(m[1] - w[1]))) < math.radians(3.0):
+                    hit = c
+                    break
+            if hit is None:
+                self._wall_cands.append(_WallCandidate([w], t_s, ws))
+                continue
+            hit.lines.append(w)
+            hit.last_t_s, hit.sighting = t_s, ws
+            if len(hit.lines) >= p.confirm_sightings:
+                lines = np.asarray(hit.lines)
+                da = np.array([norm_angle_rad(float(v - lines[0, 1])) for v in lines[:, 1]])
+                if float(lines[:, 0].std()) < p.confirm_sd_m and float(da.std()) < math.radians(1.0):
+                    if len(self.kinds) < p.max_poles:
+                        self._add_landmark(np.array([ws.rho_m, ws.alpha_rad]), dt, R, "wall", 0.0)
+                self._wall_cands.remove(hit)
+
     def _add_pole(self, sg: PoleSighting, dt: float, R: FloatArray) -> None:
-        """The pole of sighting ``sg`` into the state, its covariance from the pose's and the sighting's."""
+        self._add_landmark(np.array([sg.range_m, sg.bearing_rad]), dt, R, "pole", sg.radius_m)
+
+    def _add_landmark(self, z: FloatArray, dt: float, R: FloatArray, kind: str, radius_m: float) -> None:
+        """The landmark of sighting ``z`` into the state, its covariance from the pose's and the sighting's."""
         pose = self.X[:3].copy()
-        z = np.array([sg.range_m, sg.bearing_rad])
 
         def g(pose_: FloatArray, z_: FloatArray) -> FloatArray:
+            if kind == "wall":
+                return self._wall_in_world(pose_, z_, dt)
             s = self._sensor(pose_, dt)
             return np.array([s.x_m + z_[0] * math.cos(s.yaw_rad + z_[1]), s.y_m + z_[0] * math.sin(s.yaw_rad + z_[1])])
 
@@ -345,11 +517,15 @@ class PoleSlam:
         for i, eps in enumerate((1e-4, 1e-4, 1e-5)):
             d = np.zeros(3)
             d[i] = eps
-            Gx[:, i] = (g(pose + d, z) - l0) / eps
+            dl = g(pose + d, z) - l0
+            dl[1] = norm_angle_rad(float(dl[1])) if kind == "wall" else dl[1]
+            Gx[:, i] = dl / eps
         for i, eps in enumerate((1e-4, 1e-5)):
             e = np.zeros(2)
             e[i] = eps
-            Gz[:, i] = (g(pose, z + e) - l0) / eps
+            dl = g(pose, z + e) - l0
+            dl[1] = norm_angle_rad(float(dl[1])) if kind == "wall" else dl[1]
+            Gz[:, i] = dl / eps
         n = len(self.X)
         P = np.zeros((n + 2, n + 2))
         P[:n, :n] = self.P
@@ -358,4 +534,5 @@ class PoleSlam:
         P[n:, n:] = Gx @ self.P[:3, :3] @ Gx.T + Gz @ R @ Gz.T
         self.X = np.concatenate([self.X, l0])
         self.P = P
-        self.radii.append(sg.radius_m)
+        self.radii.append(radius_m)
+        self.kinds.append(kind)
