@@ -9,7 +9,7 @@ from the true pose at the end of each run, and the distance driven.
   of the host's map (``bench_timed.run_sil``: final error, heading, arrival against 0.05 m, 2 deg, 0.2 s), on
   scan matching (seed 0) and on poles learnt online (``--localise poles``, seeds 0..N-1).
 
-Usage: ``.venv/bin/python bench/bench_scan_localiser.py [--only sim,rows,sil,timed] [--seeds 5]``
+Usage: ``.venv/bin/python bench/bench_scan_localiser.py [--only sim,rows,sil,timed] [--seeds 5] [--no-walls]``
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="sim,rows,sil,timed")
     ap.add_argument("--seeds", type=int, default=5, help="seeds of the timed SIL runs with --localise poles")
+    ap.add_argument("--no-walls", action="store_true", help="--localise poles on poles alone (no wall landmarks)")
     ns = ap.parse_args(argv)
     only = set(ns.only.split(","))
     from agnav_host.sim.runner import run_scenario
@@ -81,6 +82,19 @@ def main(argv: list[str] | None = None) -> int:
         _row("SIL, greenhouse_cycles, him, --localise scan", res.run)
     if "timed" in only:
         import bench_timed as bt
+
+        if ns.no_walls:  # the poles localiser without its wall landmarks, for the comparison
+            import agnav_host.sim.runner as runner
+            from agnav_host.localisation.pole_slam import PoleSlam, PoleSlamParams
+
+            make = runner.make_localiser
+
+            def poles_only(sc, localise, map_yaml=None):  # type: ignore[no-untyped-def]
+                if localise == "poles":
+                    return PoleSlam(sc.start, sc.laser.mount, PoleSlamParams(walls=False))
+                return make(sc, localise, map_yaml)
+
+            runner.make_localiser = poles_only  # type: ignore[assignment]
 
         for loc, seeds in (("scan", [0]), ("poles", list(range(ns.seeds)))):
             print(f"\n| timed SIL, posts out of the host's map, --localise {loc} | seed | arrived | arrival err s "
