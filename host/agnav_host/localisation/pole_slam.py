@@ -23,7 +23,7 @@ Walls (:func:`detect_walls`): runs of returns without a jump, split where they b
 at least ``wall_min_m`` long with ``wall_min_returns`` returns fitted within ``wall_rms_m``; a wall is the
 infinite line (rho, alpha) in the world, matched and learnt like a pole. A wall holds the distance to it and,
 with a pole or a second wall, the heading: on the timed SIL runs without the survey, poles alone meet the
-targets in 16 of 20 runs, poles and walls in 19 of 20.
+targets in 17 of 20 runs, poles and walls in 19 of 20.
 
 State: ``ok``; ``slow`` after ``slow_after_m`` driven without a pole matched, ``lost`` after ``lost_after_m``
 (the host loop slows, then holds the robot). While lost no pole is learnt, so that a robot far off its estimate
@@ -273,16 +273,15 @@ class PoleSlam:
         seen = detect_poles(ranges_m, angles_rad, range_max_m, self.params)
         dt = self._dt(t_s)
         R = np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
-        used = 0
         unknown: list[PoleSighting] = []
         taken: set[int] = set()
+        matched: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # (innovation, H, R) of each match
         for sg in seen:
             best = self._best_match(sg, dt, R, taken)
             if best is not None and best[0] < self.params.gate_chi2:
-                _, k, nu, H, S = best
-                self._update(nu, H, S, R)
+                _, k, nu, H, _S = best
+                matched.append((nu, H, R))
                 taken.add(k)
-                used += 1
             elif best is None or best[0] > self.params.new_chi2:
                 unknown.append(sg)
         walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
@@ -291,12 +290,14 @@ class PoleSlam:
         for ws in walls:
             bw = self._best_wall(ws, dt, Rw, taken)
             if bw is not None and bw[0] < self.params.gate_chi2:
-                _, k, nu, H, S = bw
-                self._update(nu, H, S, Rw)
+                _, k, nu, H, _S = bw
+                matched.append((nu, H, Rw))
                 taken.add(k)
-                used += 1
             elif bw is None or bw[0] > self.params.new_chi2:
                 new_walls.append(ws)
+        used = len(matched)
+        if matched:
+            self._update(matched)
         if used:
             self.sighted += used
             self.uncorrected_m = 0.0
@@ -307,12 +308,24 @@ class PoleSlam:
             self._learn_walls(new_walls, t_s, dt, Rw)
         return used
 
-    def _update(self, nu: FloatArray, H: FloatArray, S: FloatArray, R: FloatArray) -> None:
-        K = self.P @ H.T @ np.linalg.inv(S)
+    def _update(self, matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> None:
+        """One EKF update with every match of a scan (innovation, H, R each), gated on the state before it. One
+        update of the stacked rows reads and writes the covariance once: a sighting at a time costs the whole
+        covariance per sighting (at 240 poles, 24 sightings a scan, 34 ms a scan against a few)."""
+        H = np.vstack([m[1] for m in matched])
+        nu = np.concatenate([m[0] for m in matched])
+        R = np.zeros((len(nu), len(nu)))
+        for i, m in enumerate(matched):
+            R[2 * i: 2 * i + 2, 2 * i: 2 * i + 2] = m[2]
+        cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+        Hc = H[:, cols]
+        PHt = self.P[:, cols] @ Hc.T
+        S = Hc @ PHt[cols, :] + R
+        K = PHt @ np.linalg.inv(S)
         self.X = self.X + K @ nu
         self.X[2] = norm_angle_rad(float(self.X[2]))
-        IKH = np.eye(len(self.X)) - K @ H
-        self.P = IKH @ self.P @ IKH.T + K @ R @ K.T  # Joseph form
+        P = self.P - K @ PHt.T
+        self.P = 0.5 * (P + P.T)
 
     # ---- state -----------------------------------------------------------------------------------
     def status(self) -> tuple[str, str]:
@@ -418,7 +431,7 @@ class PoleSlam:
             if abs(nu[0]) > 0.3 or abs(nu[1]) > self.params.wall_gate_rad:
                 continue
             H = self._jacobian(k, dt)
-            S = H @ self.P @ H.T + R
+            S = self._innovation_cov(H, k, R)
             m = float(nu @ np.linalg.solve(S, nu))
             if best is None or m < best[0]:
                 best = (m, k, nu, H, S)
@@ -430,19 +443,35 @@ class PoleSlam:
         best: tuple[float, int, FloatArray, FloatArray, FloatArray] | None = None
         pose = self.X[:3]
         gate = self.params.gate_m
-        for k, kind in enumerate(self.kinds):
-            if kind != "pole" or k in taken:
+        if not self.kinds:
+            return None
+        # a screen over every landmark at once: only those near where the sighting puts the pole
+        s = self._sensor(pose, dt)
+        wx = s.x_m + sg.range_m * math.cos(s.yaw_rad + sg.bearing_rad)
+        wy = s.y_m + sg.range_m * math.sin(s.yaw_rad + sg.bearing_rad)
+        lm = self.X[3:].reshape(-1, 2)
+        near = np.flatnonzero((np.hypot(lm[:, 0] - wx, lm[:, 1] - wy) < 2.0 * gate)
+                              & (np.asarray(self.kinds) == "pole"))
+        for k in (int(i) for i in near):
+            if k in taken:
                 continue
             zh = self._h(pose, self.X[3 + 2 * k: 5 + 2 * k], dt)
             nu = np.array([sg.range_m - zh[0], norm_angle_rad(sg.bearing_rad - float(zh[1]))])
             if abs(nu[0]) > gate or abs(nu[1]) * sg.range_m > gate:
                 continue
             H = self._jacobian(k, dt)
-            S = H @ self.P @ H.T + R
+            S = self._innovation_cov(H, k, R)
             m = float(nu @ np.linalg.solve(S, nu))
             if best is None or m < best[0]:
                 best = (m, k, nu, H, S)
         return best
+
+    def _innovation_cov(self, H: FloatArray, k: int, R: FloatArray) -> FloatArray:
+        """H P H^T + R from the pose's and landmark ``k``'s columns only (H is zero elsewhere)."""
+        idx = np.array([0, 1, 2, 3 + 2 * k, 4 + 2 * k])
+        Hs = H[:, idx]
+        out: FloatArray = Hs @ self.P[np.ix_(idx, idx)] @ Hs.T + R
+        return out
 
     # ---- learning poles --------------------------------------------------------------------------
     def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float, R: FloatArray) -> None:
