@@ -35,16 +35,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable, TypeVar
 
 import numpy as np
 
 from ..types import FloatArray, Pose2D, norm_angle_rad
 from .landmarks import fit_post_centre
-from .pose_filter import FilterParams, extrapolate, relative
+from .pose_filter import FilterParams, extrapolate, odometry_step, relative
 
 __all__ = ["PoleSlamParams", "PoleSighting", "WallSighting", "PoleSlam", "detect_poles", "detect_walls"]
 
 OK, SLOW, LOST = "ok", "slow", "lost"
+#: a match: (Mahalanobis distance, landmark index, innovation, H, S)
+_Match = tuple[float, int, FloatArray, FloatArray, FloatArray]
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,9 @@ class WallSighting:
     alpha_rad: float
     length_m: float
     returns: int
+
+
+Sg = TypeVar("Sg", PoleSighting, WallSighting)
 
 
 def _line_fit(xs: FloatArray, ys: FloatArray) -> tuple[float, float, float]:
@@ -273,28 +279,12 @@ class PoleSlam:
         seen = detect_poles(ranges_m, angles_rad, range_max_m, self.params)
         dt = self._dt(t_s)
         R = np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
-        unknown: list[PoleSighting] = []
         taken: set[int] = set()
         matched: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # (innovation, H, R) of each match
-        for sg in seen:
-            best = self._best_match(sg, dt, R, taken)
-            if best is not None and best[0] < self.params.gate_chi2:
-                _, k, nu, H, _S = best
-                matched.append((nu, H, R))
-                taken.add(k)
-            elif best is None or best[0] > self.params.new_chi2:
-                unknown.append(sg)
+        unknown = self._match(seen, self._best_match, dt, R, taken, matched)
         walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
         Rw = np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
-        new_walls: list[WallSighting] = []
-        for ws in walls:
-            bw = self._best_wall(ws, dt, Rw, taken)
-            if bw is not None and bw[0] < self.params.gate_chi2:
-                _, k, nu, H, _S = bw
-                matched.append((nu, H, Rw))
-                taken.add(k)
-            elif bw is None or bw[0] > self.params.new_chi2:
-                new_walls.append(ws)
+        new_walls = self._match(walls, self._best_wall, dt, Rw, taken, matched)
         used = len(matched)
         if matched:
             self._update(matched)
@@ -307,6 +297,21 @@ class PoleSlam:
             self._learn(unknown, t_s, dt, R)
             self._learn_walls(new_walls, t_s, dt, Rw)
         return used
+
+    def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, FloatArray, set[int]], _Match | None], dt: float,
+               R: FloatArray, taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[Sg]:
+        """Each sighting to its best landmark (``best_of``): matched ones go into ``matched`` (their landmark into
+        ``taken``); returns the sightings far from every landmark (candidates to learn)."""
+        unknown: list[Sg] = []
+        for sg in sightings:
+            best = best_of(sg, dt, R, taken)
+            if best is not None and best[0] < self.params.gate_chi2:
+                _, k, nu, H, _ = best
+                matched.append((nu, H, R))
+                taken.add(k)
+            elif best is None or best[0] > self.params.new_chi2:
+                unknown.append(sg)
+        return unknown
 
     def _update(self, matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> None:
         """One EKF update with every match of a scan (innovation, H, R each), gated on the state before it. One
@@ -366,14 +371,9 @@ class PoleSlam:
         return 0.0 if self.stamp_s is None else min(max(t_s - self.stamp_s, 0.0), 0.5)
 
     def _move(self, d: Pose2D) -> None:
-        fp = self.filter_params
         th = float(self.X[2])
         c, s = math.cos(th), math.sin(th)
-        F = np.array([[1.0, 0.0, -s * d.x_m - c * d.y_m], [0.0, 1.0, c * d.x_m - s * d.y_m], [0.0, 0.0, 1.0]])
-        G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        dist = math.hypot(d.x_m, d.y_m)
-        Q = np.diag([(fp.odo_along * dist) ** 2 + 1e-8, (fp.odo_across * dist) ** 2 + 1e-8,
-                     (fp.odo_yaw_per_m * dist + fp.odo_yaw_per_rad * abs(d.yaw_rad)) ** 2 + 1e-10])
+        F, G, Q = odometry_step(th, d, self.filter_params)
         self.X[0] += c * d.x_m - s * d.y_m
         self.X[1] += s * d.x_m + c * d.y_m
         self.X[2] = norm_angle_rad(th + d.yaw_rad)

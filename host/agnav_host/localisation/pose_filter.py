@@ -80,6 +80,18 @@ class FilterParams:
                 raise ValueError(f"FilterParams.{k} must be > 0")
 
 
+def odometry_step(yaw_rad: float, d: Pose2D, p: FilterParams) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """An odometry increment ``d`` (robot frame) from a pose of heading ``yaw_rad``: the Jacobians of pose (+) d
+    with respect to the pose (F) and to d (G), and the increment's noise Q (:class:`FilterParams`)."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    F = np.array([[1.0, 0.0, -s * d.x_m - c * d.y_m], [0.0, 1.0, c * d.x_m - s * d.y_m], [0.0, 0.0, 1.0]])
+    G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    dist = math.hypot(d.x_m, d.y_m)
+    Q = np.diag([(p.odo_along * dist) ** 2 + 1e-8, (p.odo_across * dist) ** 2 + 1e-8,
+                 (p.odo_yaw_per_m * dist + p.odo_yaw_per_rad * abs(d.yaw_rad)) ** 2 + 1e-10])
+    return F, G, Q
+
+
 def _range_bearing(pose: Pose2D, mount: Pose2D, lx: float, ly: float) -> tuple[float, float]:
     sen = pose.compose(mount)
     dx, dy = lx - sen.x_m, ly - sen.y_m
@@ -119,15 +131,7 @@ class PoseFilter:
         self.yaw_rate_rad_s = yaw_rate_rad_s
 
     def _move(self, d: Pose2D) -> None:
-        p = self.params
-        th = self.pose.yaw_rad
-        c, s = math.cos(th), math.sin(th)
-        # Jacobian of pose (+) d with respect to the pose, and with respect to d
-        F = np.array([[1.0, 0.0, -s * d.x_m - c * d.y_m], [0.0, 1.0, c * d.x_m - s * d.y_m], [0.0, 0.0, 1.0]])
-        G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        dist = math.hypot(d.x_m, d.y_m)
-        Q = np.diag([(p.odo_along * dist) ** 2 + 1e-8, (p.odo_across * dist) ** 2 + 1e-8,
-                     (p.odo_yaw_per_m * dist + p.odo_yaw_per_rad * abs(d.yaw_rad)) ** 2 + 1e-10])
+        F, G, Q = odometry_step(self.pose.yaw_rad, d, self.params)
         self.pose = self.pose.compose(d)
         self.P = F @ self.P @ F.T + G @ Q @ G.T
 
