@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from typing import Callable, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from ..types import FloatArray, Pose2D, norm_angle_rad
 from .landmarks import fit_post_centre
@@ -120,14 +121,9 @@ def detect_poles(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: floa
     n = len(rr)
     spacing = float(np.median(np.abs(np.diff(a)))) if n > 1 else 0.0
     out: list[PoleSighting] = []
-    i = 0
-    while i < n:
-        if not ok[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < n and ok[j + 1] and abs(rr[j + 1] - rr[j]) < 0.1:
-            j += 1
+    with np.errstate(invalid="ignore"):  # inf - inf between two beams without a return
+        joined = np.abs(np.diff(rr)) < 0.1
+    for i, j in _runs(ok, joined):
         run = slice(i, j + 1)
         near = float(rr[run].min())
         left = float(rr[i - 1]) if i > 0 else math.inf
@@ -139,6 +135,23 @@ def detect_poles(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: floa
                 rad = min(max(0.5 * (width + float(rr[run].mean()) * spacing), p.radius_m[0]), p.radius_m[1])
                 cx, cy = fit_post_centre(xs, ys, rad)
                 out.append(PoleSighting(math.hypot(cx, cy), math.atan2(cy, cx), rad))
+    return out
+
+
+def _runs(ok: npt.NDArray[np.bool_], joined: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """The runs (first, last beam) of consecutive beams with a return (``ok``) where each beam is ``joined`` to
+    the next (``joined[k]``: beams k and k + 1 belong together)."""
+    out: list[tuple[int, int]] = []
+    n = len(ok)
+    i = 0
+    while i < n:
+        if not ok[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and ok[j + 1] and joined[j]:
+            j += 1
+        out.append((i, j))
         i = j + 1
     return out
 
@@ -199,17 +212,8 @@ def detect_walls(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: floa
         if rms <= p.wall_rms_m:
             out.append(WallSighting(rho, alpha, length, j - i + 1))
 
-    n = len(r)
-    i = 0
-    while i < n:
-        if not ok[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < n and ok[j + 1] and math.hypot(xs_all[j + 1] - xs_all[j], ys_all[j + 1] - ys_all[j]) < 0.1:
-            j += 1
+    for i, j in _runs(ok, np.hypot(np.diff(xs_all), np.diff(ys_all)) < 0.1):
         split(i, j)
-        i = j + 1
     return out
 
 
@@ -418,10 +422,10 @@ class PoleSlam:
         return H
 
     def _best_wall(self, ws: WallSighting, dt: float, R: FloatArray,
-                   taken: set[int]) -> tuple[float, int, FloatArray, FloatArray, FloatArray] | None:
+                   taken: set[int]) -> _Match | None:
         """The learnt wall nearest the sighting in Mahalanobis distance among those within 0.3 m and
         ``wall_gate_rad``."""
-        best: tuple[float, int, FloatArray, FloatArray, FloatArray] | None = None
+        best: _Match | None = None
         pose = self.X[:3]
         for k, kind in enumerate(self.kinds):
             if kind != "wall" or k in taken:
@@ -430,17 +434,13 @@ class PoleSlam:
             nu = np.array([ws.rho_m - zh[0], norm_angle_rad(ws.alpha_rad - float(zh[1]))])
             if abs(nu[0]) > 0.3 or abs(nu[1]) > self.params.wall_gate_rad:
                 continue
-            H = self._jacobian(k, dt)
-            S = self._innovation_cov(H, k, R)
-            m = float(nu @ np.linalg.solve(S, nu))
-            if best is None or m < best[0]:
-                best = (m, k, nu, H, S)
+            best = self._better(best, k, nu, dt, R)
         return best
 
     def _best_match(self, sg: PoleSighting, dt: float, R: FloatArray,
-                    taken: set[int]) -> tuple[float, int, FloatArray, FloatArray, FloatArray] | None:
+                    taken: set[int]) -> _Match | None:
         """The learnt pole nearest the sighting in Mahalanobis distance among those within ``gate_m``."""
-        best: tuple[float, int, FloatArray, FloatArray, FloatArray] | None = None
+        best: _Match | None = None
         pose = self.X[:3]
         gate = self.params.gate_m
         if not self.kinds:
@@ -459,12 +459,15 @@ class PoleSlam:
             nu = np.array([sg.range_m - zh[0], norm_angle_rad(sg.bearing_rad - float(zh[1]))])
             if abs(nu[0]) > gate or abs(nu[1]) * sg.range_m > gate:
                 continue
-            H = self._jacobian(k, dt)
-            S = self._innovation_cov(H, k, R)
-            m = float(nu @ np.linalg.solve(S, nu))
-            if best is None or m < best[0]:
-                best = (m, k, nu, H, S)
+            best = self._better(best, k, nu, dt, R)
         return best
+
+    def _better(self, best: _Match | None, k: int, nu: FloatArray, dt: float, R: FloatArray) -> _Match:
+        """``best`` or landmark ``k`` with innovation ``nu``, whichever is nearer in Mahalanobis distance."""
+        H = self._jacobian(k, dt)
+        S = self._innovation_cov(H, k, R)
+        m = float(nu @ np.linalg.solve(S, nu))
+        return (m, k, nu, H, S) if best is None or m < best[0] else best
 
     def _innovation_cov(self, H: FloatArray, k: int, R: FloatArray) -> FloatArray:
         """H P H^T + R from the pose's and landmark ``k``'s columns only (H is zero elsewhere)."""
