@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from _localisation_helpers import run_on_replayed_scans
 
 from agnav_host.localisation.pole_slam import PoleSlam, PoleSlamParams, detect_poles
 from agnav_host.sim.runner import make_localiser, run_scenario
@@ -183,27 +184,13 @@ def test_a_wall_beside_the_route_is_learnt_and_holds_the_distance_to_it():
 
 
 def test_agnav_run_localises_on_poles_and_writes_the_pose_sigma(tmp_path, capsys):
-    from agnav_host import cli
-    from agnav_host.lasers import LaserMount
-    from agnav_host.lasers.log import LaserLogWriter
-    from agnav_host.link.fake import FakeRobot
     from agnav_host.types import LaserScan
 
     def yard(t: float) -> LaserScan:  # two poles ahead, seen by a 1 deg laser
         return LaserScan(float(ANGLES[0]), float(ANGLES[1] - ANGLES[0]),
                          _ray_circles([(2.5, 0.8, 0.08), (3.0, -0.9, 0.08)], ANGLES), 4.0, t)
 
-    log = tmp_path / "scans.alog"
-    with LaserLogWriter(log) as w:
-        w.declare(0, "tim5xx://test", "tim5xx", "TiM310", LaserMount(0.0), yard(0.0), "device", 0.0)
-        for k in range(45):
-            w.write(0, yard(k / 15.0), k / 15.0, None)
-    out = tmp_path / "run"
-    with FakeRobot() as fr:
-        rc = cli.main(["run", "--device", fr.device, "--laser", f"replay:{log}", "--planner", "him",
-                       "--goal", "1,0", "--duration", "2", "--out", str(out), "--no-plot", "--localise", "poles"])
-    err = capsys.readouterr()
-    assert rc == 0, err
-    rows = (out / "localisation.csv").read_text().splitlines()
+    rc, rows = run_on_replayed_scans(tmp_path, yard, "TiM310", 0.0, "poles")
+    assert rc == 0, capsys.readouterr()
     assert rows[0] == "t_s,state,sigma_x_m,sigma_y_m,sigma_yaw_rad" and len(rows) > 5
     assert all(r.split(",")[1] == "ok" for r in rows[1:])

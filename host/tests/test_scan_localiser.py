@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from _localisation_helpers import run_on_replayed_scans
 
 from agnav_host.hostloop import SLOW_SHARE, HostLoop, SensorFrame
 from agnav_host.localisation.occupancy import occupancy_from_scans, save_map
@@ -160,27 +161,12 @@ def test_unknown_or_impossible_localisers_are_refused(lab):
 
 
 def test_agnav_run_localises_on_scans_and_writes_the_pose_sigma(tmp_path, capsys):
-    from agnav_host import cli
-    from agnav_host.lasers import LaserMount
-    from agnav_host.lasers.log import LaserLogWriter
-    from agnav_host.link.fake import FakeRobot
-
     def wall(t: float) -> LaserScan:  # a wall 3 m ahead, seen over +-57 deg
         a = -1.0 + 0.01 * np.arange(201)
         return LaserScan(-1.0, 0.01, 3.0 / np.cos(a), 10.0, t)
 
-    log = tmp_path / "scans.alog"
-    with LaserLogWriter(log) as w:
-        w.declare(0, "tim5xx://test", "tim5xx", "TiM561", LaserMount(0.2), wall(0.0), "device", 0.0)
-        for k in range(45):
-            w.write(0, wall(k / 15.0), k / 15.0, None)
-    out = tmp_path / "run"
-    with FakeRobot() as fr:
-        rc = cli.main(["run", "--device", fr.device, "--laser", f"replay:{log}?x=0.2", "--planner", "him",
-                       "--goal", "1,0", "--duration", "2", "--out", str(out), "--no-plot", "--localise", "scan"])
-    err = capsys.readouterr()
-    assert rc == 0, err
-    rows = (out / "localisation.csv").read_text().splitlines()
+    rc, rows = run_on_replayed_scans(tmp_path, wall, "TiM561", 0.2, "scan")
+    assert rc == 0, capsys.readouterr()
     assert rows[0] == "t_s,state,sigma_x_m,sigma_y_m,sigma_yaw_rad" and len(rows) > 5
     assert all(r.split(",")[1] in ("ok", "slow", "lost") for r in rows[1:])
 
