@@ -37,7 +37,7 @@ import numpy as np
 
 from ..types import FloatArray, Pose2D, norm_angle_rad
 from .occupancy import OCCUPIED, MapFileError, OccupancyGrid, load_map
-from .pose_filter import FilterParams, PoseFilter
+from .pose_filter import FilterParams, PoseFilter, extrapolate
 from .scan_match import LikelihoodGrid, PointMap, correlative_search, icp_point_to_line, transform_points, voxel_filter
 from .slam import Slam, SlamParams
 
@@ -113,7 +113,6 @@ class ScanLocaliser:
         self.mount = mount
         self.start = start
         self.filter = PoseFilter(start, None, mount, filter_params)
-        self.frozen = grid is not None  # a saved map is matched against, not extended
         self._pts = map_points(grid) if grid is not None else np.zeros((0, 2))
         if grid is not None and len(self._pts) < 3:
             raise MapFileError(f"the map has {len(self._pts)} occupied cells: nothing to localise against")
@@ -180,13 +179,12 @@ class ScanLocaliser:
         return 1
 
     def _odometry_at(self, t_s: float) -> FloatArray:
-        """The odometry alone at ``t_s`` in the world frame: the last report, extrapolated with its speed."""
+        """The odometry alone at ``t_s`` in the world frame: the last report, extrapolated with its speed and yaw
+        rate."""
         f = self.filter
         o = f._last_odo
-        if f.stamp_s is not None and t_s > f.stamp_s:
-            dt = t_s - f.stamp_s
-            o = Pose2D(o.x_m + f.speed_m_s * dt * math.cos(o.yaw_rad), o.y_m + f.speed_m_s * dt * math.sin(o.yaw_rad),
-                       o.yaw_rad + f.yaw_rate_rad_s * dt)
+        if f.stamp_s is not None:  # as the filter's pose_at carries its estimate
+            o = extrapolate(o, f.speed_m_s, f.yaw_rate_rad_s, min(t_s - f.stamp_s, 0.5))
         return _arr(self.start.compose(o))
 
     def _scan_online(self, src: FloatArray, pred: FloatArray, t_s: float) -> int:
@@ -240,9 +238,7 @@ class ScanLocaliser:
         p = self.p
         slam = self.slam
         assert slam is not None
-        x = slam.graph.poses
-        lo = max(0, len(x) - slam.p.local_scans)
-        pts = np.concatenate([transform_points(x[i], slam.points[i]) for i in range(lo, len(x))])
+        pts = slam.local_points(len(slam.graph.poses))
         found = correlative_search(src, LikelihoodGrid(voxel_filter(pts, p.cell_m)), pred, p.relocalise_xy_m,
                                    p.relocalise_yaw_rad)
         if found.score < p.relocalise_score:

@@ -186,11 +186,16 @@ class Slam:
     # ---- front end --------------------------------------------------------------------------------------
 
     def _local_map(self, k: int) -> PointMap | None:
-        lo = max(0, k - self.p.local_scans)
-        if k - lo < 1:
+        if k < 1:
             return None
-        pts = np.concatenate([transform_points(self.graph.poses[i], self.points[i]) for i in range(lo, k)])
-        return PointMap(voxel_filter(pts, self.p.local_voxel_m))
+        return PointMap(voxel_filter(self.local_points(k), self.p.local_voxel_m))
+
+    def local_points(self, k: int) -> FloatArray:
+        """The points of the :attr:`SlamParams.local_scans` nodes before node ``k``, placed by their current
+        estimates (world frame), (n, 2) m; ``k`` >= 1."""
+        lo = max(0, k - self.p.local_scans)
+        out: FloatArray = np.concatenate([transform_points(self.graph.poses[i], self.points[i]) for i in range(lo, k)])
+        return out
 
     def _link(self, i: int, j: int, w: float) -> None:
         self._adj_rows += [i, j]
