@@ -25,7 +25,7 @@ infinite line (rho, alpha) in the world, matched and learnt like a pole. A wall 
 with a pole or a second wall, the heading: on the timed SIL runs without the survey, poles alone meet the
 targets in 17 of 20 runs, poles and walls in 19 of 20.
 
-State: ``ok``; ``slow`` after ``slow_after_m`` driven without a pole matched, ``lost`` after ``lost_after_m``
+State: ``ok``; ``slow`` after ``slow_after_m`` driven without a pole or wall matched, ``lost`` after ``lost_after_m``
 (the host loop slows, then holds the robot). While lost no pole is learnt, so that a robot far off its estimate
 does not map poles at the wrong place; the first matched sighting (the gate grows with the odometry's
 covariance) ends it.
@@ -56,7 +56,7 @@ class PoleSlamParams:
     """Detection: ``max_width_m``, ``jump_m``, ``min_returns``, radii clamped to ``radius_m``. Matching:
     ``gate_m`` and ``gate_chi2``; ``new_chi2`` above which a sighting is no known pole. Learning:
     ``confirm_sightings`` in a row within ``confirm_sd_m`` (sd of the positions), ``confirm_drift_m`` (first
-    to last), a candidate forgotten after ``candidate_timeout_s`` unseen; at most ``max_poles``. A sighting's
+    to last), a candidate forgotten after ``candidate_timeout_s`` unseen; at most ``max_landmarks`` poles and walls. A sighting's
     noise: ``range_sigma_m``, ``bearing_sigma_rad``. State:
     ``slow_after_m`` / ``lost_after_m`` driven without a matched pole."""
 
@@ -73,7 +73,7 @@ class PoleSlamParams:
     confirm_drift_m: float = 0.06
     candidate_radius_m: float = 0.15
     candidate_timeout_s: float = 1.0
-    max_poles: int = 300
+    max_landmarks: int = 300
     range_sigma_m: float = 0.03  # a sighting's noise: the fitted centres of 16 cm poles scatter 11-24 mm in range
     bearing_sigma_rad: float = math.radians(0.5)  # and 0.2-0.4 deg in bearing beyond 1 m (TiM310, 1 deg beams)
     # walls: straight stretches at least wall_min_m long of wall_min_returns returns, fitted within wall_rms_m
@@ -93,8 +93,8 @@ class PoleSlamParams:
                   "confirm_drift_m", "candidate_radius_m", "candidate_timeout_s", "slow_after_m", "lost_after_m"):
             if not getattr(self, k) > 0:
                 raise ValueError(f"PoleSlamParams.{k} must be > 0")
-        if self.min_returns < 2 or self.confirm_sightings < 2 or self.max_poles < 1:
-            raise ValueError("PoleSlamParams: need min_returns >= 2, confirm_sightings >= 2, max_poles >= 1")
+        if self.min_returns < 2 or self.confirm_sightings < 2 or self.max_landmarks < 1:
+            raise ValueError("PoleSlamParams: need min_returns >= 2, confirm_sightings >= 2, max_landmarks >= 1")
         if not 0 < self.radius_m[0] <= self.radius_m[1]:
             raise ValueError("PoleSlamParams.radius_m must be (min, max) with 0 < min <= max")
         if not self.slow_after_m <= self.lost_after_m:
@@ -289,18 +289,16 @@ class PoleSlam:
         walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
         Rw = np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
         new_walls = self._match(walls, self._best_wall, dt, Rw, taken, matched)
-        used = len(matched)
         if matched:
             self._update(matched)
-        if used:
-            self.sighted += used
+            self.sighted += len(matched)
             self.uncorrected_m = 0.0
             if self.state != OK:
                 self.state, self.reason = OK, ""
         if self.state != LOST:  # a robot far off its estimate would learn poles at the wrong place
             self._learn(unknown, t_s, dt, R)
             self._learn_walls(new_walls, t_s, dt, Rw)
-        return used
+        return len(matched)
 
     def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, FloatArray, set[int]], _Match | None], dt: float,
                R: FloatArray, taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[Sg]:
@@ -364,7 +362,7 @@ class PoleSlam:
 
     def _check_state(self) -> None:
         d = self.uncorrected_m
-        why = f"{d:.1f} m driven without a pole in sight"
+        why = f"{d:.1f} m driven without a pole or wall in sight"
         if d >= self.params.lost_after_m:
             self.state, self.reason = LOST, why
         elif d >= self.params.slow_after_m and self.state == OK:
@@ -446,9 +444,7 @@ class PoleSlam:
         if not self.kinds:
             return None
         # a screen over every landmark at once: only those near where the sighting puts the pole
-        s = self._sensor(pose, dt)
-        wx = s.x_m + sg.range_m * math.cos(s.yaw_rad + sg.bearing_rad)
-        wy = s.y_m + sg.range_m * math.sin(s.yaw_rad + sg.bearing_rad)
+        wx, wy = self._pole_in_world(pose, np.array([sg.range_m, sg.bearing_rad]), dt)
         lm = self.X[3:].reshape(-1, 2)
         near = np.flatnonzero((np.hypot(lm[:, 0] - wx, lm[:, 1] - wy) < 2.0 * gate)
                               & (np.asarray(self.kinds) == "pole"))
@@ -480,10 +476,8 @@ class PoleSlam:
     def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float, R: FloatArray) -> None:
         p = self.params
         self._cands = [c for c in self._cands if t_s - c.last_t_s < p.candidate_timeout_s]
-        s = self._sensor(self.X[:3], dt)
         for sg in unknown:
-            wx = s.x_m + sg.range_m * math.cos(s.yaw_rad + sg.bearing_rad)
-            wy = s.y_m + sg.range_m * math.sin(s.yaw_rad + sg.bearing_rad)
+            wx, wy = (float(v) for v in self._pole_in_world(self.X[:3], np.array([sg.range_m, sg.bearing_rad]), dt))
             hit = None
             for c in self._cands:
                 m = np.mean(np.asarray(c.xy), axis=0)
@@ -499,13 +493,19 @@ class PoleSlam:
             if len(xy) < p.confirm_sightings:
                 continue
             if float(xy.std(axis=0).max()) < p.confirm_sd_m and math.hypot(*(xy[-1] - xy[0])) < p.confirm_drift_m:
-                if len(self.kinds) < p.max_poles:
+                if len(self.kinds) < p.max_landmarks:
                     self._add_pole(sg, dt, R)
                 self._cands.remove(hit)
             elif len(xy) > 2 * p.confirm_sightings + 2:  # it keeps moving: not a pole
                 self._cands.remove(hit)
 
+    def _pole_in_world(self, pose: FloatArray, z: FloatArray, dt: float) -> FloatArray:
+        """Where a pole seen at range and bearing ``z`` from the laser stands, the robot at ``pose``."""
+        s = self._sensor(pose, dt)
+        return np.array([s.x_m + z[0] * math.cos(s.yaw_rad + z[1]), s.y_m + z[0] * math.sin(s.yaw_rad + z[1])])
+
     def _wall_in_world(self, pose: FloatArray, z: FloatArray, dt: float) -> FloatArray:
+        """The world line of a wall seen as (rho, alpha) ``z`` from the laser, the robot at ``pose``."""
         s = self._sensor(pose, dt)
         alpha = float(z[1]) + s.yaw_rad
         rho = float(z[0]) + s.x_m * math.cos(alpha) + s.y_m * math.sin(alpha)
@@ -534,7 +534,7 @@ class PoleSlam:
                 lines = np.asarray(hit.lines)
                 da = np.array([norm_angle_rad(float(v - lines[0, 1])) for v in lines[:, 1]])
                 if float(lines[:, 0].std()) < p.confirm_sd_m and float(da.std()) < math.radians(1.0):
-                    if len(self.kinds) < p.max_poles:
+                    if len(self.kinds) < p.max_landmarks:
                         self._add_landmark(np.array([ws.rho_m, ws.alpha_rad]), dt, R, "wall", 0.0)
                 self._wall_cands.remove(hit)
 
@@ -546,10 +546,7 @@ class PoleSlam:
         pose = self.X[:3].copy()
 
         def g(pose_: FloatArray, z_: FloatArray) -> FloatArray:
-            if kind == "wall":
-                return self._wall_in_world(pose_, z_, dt)
-            s = self._sensor(pose_, dt)
-            return np.array([s.x_m + z_[0] * math.cos(s.yaw_rad + z_[1]), s.y_m + z_[0] * math.sin(s.yaw_rad + z_[1])])
+            return self._wall_in_world(pose_, z_, dt) if kind == "wall" else self._pole_in_world(pose_, z_, dt)
 
         l0 = g(pose, z)
         Gx = np.zeros((2, 3))
