@@ -84,7 +84,9 @@ class SlamParams:
     icp_final_dist_m: float = 0.15
     point_sigma_m: float = 0.03  # one return's error in the ICP information
     point_dof: float = 8.0  # independent points a match's information is worth in the graph (correlated returns)
-    prior_dof: float = 100.0  # the same for weighing the odometry prior inside the front end's ICP
+    # the same for weighing the odometry prior inside the front end's ICP; a scan of fewer returns gets the prior
+    # as for prior_dof returns, so that a handful of returns cannot turn the pose against the odometry
+    prior_dof: float = 100.0
     min_overlap: float = 0.55  # below: the prediction is re-found by the correlative search
     reloc_xy_m: float = 1.0
     reloc_yaw_rad: float = math.radians(15.0)
