@@ -92,21 +92,16 @@ class GeoPath:
     def sample(self, s_m: FloatArray | float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """(x, y, yaw, kappa) at arc lengths ``s_m``. Beyond the end the path continues straight
         along the final heading (the tracker looks ahead past the goal)."""
-        s = np.asarray(s_m, dtype=float)
-        sc = _clip(s, 0.0, self.s[-1])
-        x = _interp(sc, self.s, self.xy[:, 0])
-        y = _interp(sc, self.s, self.xy[:, 1])
-        yaw = _interp(sc, self.s, self.yaw)
-        k = _interp(sc, self.s, self.kappa)
-        extra = s - sc
-        if (extra != 0.0).any():
-            x = x + extra * np.cos(yaw)
-            y = y + extra * np.sin(yaw)
-        return x, y, yaw, k
+        sc, x, y, yaw = self._sample(np.asarray(s_m, dtype=float))
+        return x, y, yaw, _interp(sc, self.s, self.kappa)
 
     def sample_xy_yaw(self, s_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(x, y, yaw) of :meth:`sample` (the same values), without the curvature: the collision checks'."""
-        s = np.asarray(s_m, dtype=float)
+        _, x, y, yaw = self._sample(np.asarray(s_m, dtype=float))
+        return x, y, yaw
+
+    def _sample(self, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(s clipped to the path, x, y, yaw) at arc lengths ``s``, straight on beyond the end."""
         sc = _clip(s, 0.0, self.s[-1])
         x = _interp(sc, self.s, self.xy[:, 0])
         y = _interp(sc, self.s, self.xy[:, 1])
@@ -115,7 +110,7 @@ class GeoPath:
         if (extra != 0.0).any():
             x = x + extra * np.cos(yaw)
             y = y + extra * np.sin(yaw)
-        return x, y, yaw
+        return sc, x, y, yaw
 
     def project(self, x_m: float, y_m: float, hint_s_m: float = 0.0, window_m: float = 2.0) -> tuple[float, float]:
         """(arc length, signed lateral offset + = left) of the nearest path point to (x, y), searched
@@ -270,19 +265,6 @@ def _assemble(xs: list[FloatArray], ys: list[FloatArray], ks: list[FloatArray], 
     return GeoPath(np.column_stack((x, y)), yaw, kappa, s, tuple(forms), knots)
 
 
-def _single_leg(x: FloatArray, y: FloatArray, kappa: FloatArray, h: FloatArray, form: str) -> GeoPath:
-    """:func:`_assemble` of one leg (the same arithmetic, without the concatenations)."""
-    n = len(h)
-    yaw = np.empty(n)
-    yaw[0] = h[0]
-    np.cumsum(norm_angle_rad(h[1:] - h[:-1]), out=yaw[1:])
-    yaw[1:] += h[0]  # unwrapped
-    s = np.empty(n)
-    s[0] = 0.0
-    np.cumsum(np.hypot(x[1:] - x[:-1], y[1:] - y[:-1]), out=s[1:])
-    return GeoPath(np.column_stack((x, y)), yaw, kappa, s, (form,), (0.0, float(s[-1])))
-
-
 _Leg = tuple[FloatArray, FloatArray, FloatArray, FloatArray, str, GeoPath]
 
 
@@ -292,7 +274,7 @@ def _leg(a: BoundaryState, b: BoundaryState, wheelbase_m: float, spacing_m: floa
     leg = _LEGS.get(key)
     if leg is None:
         wx, wy, kap, hd, form = _build_leg(a, b, wheelbase_m, spacing_m)
-        leg = (wx, wy, kap, hd, form, _single_leg(wx, wy, kap, hd, form))
+        leg = (wx, wy, kap, hd, form, _assemble([wx], [wy], [kap], [hd], [form]))
         if len(_LEGS) >= 64:
             _LEGS.clear()
         _LEGS[key] = leg
