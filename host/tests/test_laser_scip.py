@@ -361,10 +361,12 @@ def test_stamps_cross_the_24_bit_wrap(ust_emulator):
         finally:
             laser.close()
     assert all(s is not None for s in scans)
-    stamps = [s.stamp_s for s in scans]
-    assert all(0.015 < b - a < 0.035 for a, b in zip(stamps, stamps[1:])), np.diff(stamps)
-    for s in scans:
-        assert abs(s.stamp_s - feed.host_t[round(s.ranges_m[0] * 1000) - 1000]) < 0.02
+    stamps = np.array([s.stamp_s for s in scans])
+    # the intervals of the times the feed published these scans at (a loaded machine wakes it late now and then)
+    published = np.array([feed.host_t[round(s.ranges_m[0] * 1000) - 1000] for s in scans])
+    assert (np.diff(stamps) > 0.015).all(), np.diff(stamps)  # no step back, no stall across the wrap
+    assert (np.abs(np.diff(stamps) - np.diff(published)) < 0.005).all(), (np.diff(stamps), np.diff(published))
+    assert (np.abs(stamps - published) < 0.02).all()
 
 
 def test_reconnect_after_the_emulator_drops_the_client(ust_emulator):
