@@ -52,6 +52,47 @@ def test_a_wall_a_crate_and_a_pole_against_a_wall_are_not_poles():
     assert detect_poles(np.where(np.isfinite(leaning), leaning, np.nan), a, 4.0) == []  # 0.1 m in front of the wall
 
 
+def test_a_barrel_narrower_than_the_width_bound_is_no_pole():
+    """A 0.34 m barrel at 2 m spans under max_width_m between its edge returns, but its radius comes out above
+    the largest pole's: no sighting (a centre fitted with a clamped radius would stand in front of the barrel's)."""
+    barrel = _ray_circles([(2.0, 0.3, 0.17)], ANGLES)
+    p = PoleSlamParams()
+    hit = np.flatnonzero(np.isfinite(barrel))
+    ends = [(barrel[i] * math.cos(ANGLES[i]), barrel[i] * math.sin(ANGLES[i])) for i in (hit[0], hit[-1])]
+    assert math.dist(*ends) <= p.max_width_m
+    assert detect_poles(barrel, ANGLES, 4.0, p) == []
+    assert len(detect_poles(_ray_circles([(2.0, 0.3, 0.12)], ANGLES), ANGLES, 4.0, p)) == 1  # a 0.24 m trunk is one
+
+
+def test_a_far_sighting_of_few_returns_is_fitted_with_the_learnt_radius():
+    """A pole learnt close by keeps the mean radius of its sightings; seen again far off by two beams
+    (its scan radius then a beam's width at that range) it is fitted with that radius, which takes the radius's
+    share out of its range error (what is left: two returns stand behind the pole's front)."""
+    loc = PoleSlam(Pose2D())
+    _drive(loc, lambda t: [(2.5, 0.4, 0.05)], 40)  # 1.3 m towards a 10 cm pole: learnt, radius from many returns
+    assert len(loc.poles) == 1 and abs(float(loc.poles[0, 2]) - 0.05) < 0.005
+    b = math.radians(0.5)  # half-way between two beams: the pole (1.5 beams wide at 3.9 m) is hit by two
+    far = detect_poles(_ray_circles([(3.9 * math.cos(b), 3.9 * math.sin(b), 0.05)], ANGLES), ANGLES, 4.0)
+    assert len(far) == 1 and far[0].returns == 2
+    own, fitted = far[0], far[0].with_radius(float(loc.poles[0, 2]))
+    assert own.radius_m > 0.065 and own.range_m - 3.9 > 0.025  # a beam's width at 3.9 m: 3 cm too far
+    assert abs(fitted.range_m - 3.9) < 0.6 * (own.range_m - 3.9) and abs(fitted.bearing_rad - b) < math.radians(0.2)
+    # in the localiser: backing away from the pole to 3.9 m on exact odometry, the pose stays nearer the truth than
+    # with every sighting taken at its own radius
+    errs = []
+    for params in (PoleSlamParams(), PoleSlamParams(radius_min_sightings=10**6)):
+        loc = PoleSlam(Pose2D(), params=params)
+        t = _drive(loc, lambda t: [(2.5, 0.4, 0.05)], 40)
+        x = 0.5 * t
+        for _ in range(78):  # 2.6 m back: the pole from 1.3 m to 3.9 m off
+            x -= 0.5 / 15
+            t += 1 / 15
+            loc.odometry(x, 0.0, 0.0, t, -0.5, 0.0)
+            loc.scan(_ray_circles([(2.5 - x, 0.4, 0.05)], ANGLES), ANGLES, t, 4.0)
+        errs.append(abs(loc.pose_at(t).x_m - x))
+    assert errs[0] < 0.8 * errs[1]  # 9 mm against 12 mm
+
+
 def _drive(loc: PoleSlam, poles_at, n: int, speed: float = 0.5, t0: float = 0.0) -> float:
     """Drive along x at ``speed`` from x = speed * t0, 15 Hz: odometry exact, a scan of ``poles_at(t)``
     (circles in the world) from the true pose."""

@@ -7,10 +7,15 @@ joint covariance. Wheel
 odometry predicts the pose (the noise model of :class:`~.pose_filter.FilterParams`, the same latency
 extrapolation as :class:`~.pose_filter.PoseFilter`). In each scan :func:`detect_poles` finds the poles: runs of
 returns at most ``max_width_m`` wide that stand at least ``jump_m`` in front of both neighbouring beams. A
-pole's radius is half the run's width plus one beam spacing at its range (the first and last returns miss the
-silhouette by about a beam), and its centre is the circle of that radius fitted to the returns
+pole's radius in one scan is half the run's width plus one beam spacing at its range (the first and last returns
+miss the silhouette by about a beam), and its centre is the circle of that radius fitted to the returns
 (:func:`~.landmarks.fit_post_centre`): without the beam term the centre comes out about 18 mm nearer at 3-4 m
-than at 1 m, and a robot that drives towards its poles then believes it has moved less than it has.
+than at 1 m, and a robot that drives towards its poles then believes it has moved less than it has. A run whose
+radius comes out above ``radius_m`` is no pole (a barrel or a bush seen edge-on: fitted with a clamped radius its
+centre would stand in front of the real one and move as the robot passes). A learnt pole keeps the mean radius
+of its sightings, and a sighting of fewer than ``radius_min_returns`` returns (a far pole, a thin one) is fitted
+with that radius: a scan's radius over few returns is quantised by the beam spacing, their mean is not while the
+pole spans two beams or more.
 
 A sighting is matched to the learnt pole whose predicted centre is within ``gate_m`` and whose Mahalanobis
 distance is below ``gate_chi2``; it then corrects the pose and every pole through their covariance. A
@@ -22,8 +27,7 @@ from the pose's and the sighting's.
 Walls (:func:`detect_walls`): runs of returns without a jump, split where they bend, kept where a stretch is
 at least ``wall_min_m`` long with ``wall_min_returns`` returns fitted within ``wall_rms_m``; a wall is the
 infinite line (rho, alpha) in the world, matched and learnt like a pole. A wall holds the distance to it and,
-with a pole or a second wall, the heading: on the timed SIL runs without the survey, poles alone meet the
-targets in 17 of 20 runs, poles and walls in 19 of 20.
+with a pole or a second wall, the heading (the timed SIL figures with and without walls: BENCHMARKS.md).
 
 State: ``ok``; ``slow`` after ``slow_after_m`` driven without a pole or wall matched, ``lost`` after ``lost_after_m``
 (the host loop slows, then holds the robot). While lost no pole is learnt, so that a robot far off its estimate
@@ -47,13 +51,15 @@ from .pose_filter import FilterParams, extrapolate, odometry_step, relative
 __all__ = ["PoleSlamParams", "PoleSighting", "WallSighting", "PoleSlam", "detect_poles", "detect_walls"]
 
 OK, SLOW, LOST = "ok", "slow", "lost"
-#: a match: (Mahalanobis distance, landmark index, innovation, H, S)
-_Match = tuple[float, int, FloatArray, FloatArray, FloatArray]
+#: a match: (Mahalanobis distance, landmark index, innovation, H, S, the sighting's covariance R)
+_Match = tuple[float, int, FloatArray, FloatArray, FloatArray, FloatArray]
 
 
 @dataclass(frozen=True)
 class PoleSlamParams:
-    """Detection: ``max_width_m``, ``jump_m``, ``min_returns``, radii clamped to ``radius_m``. Matching:
+    """Detection: ``max_width_m``, ``jump_m``, ``min_returns``, a pole's radius within ``radius_m`` (a run of a
+    larger radius is no pole); a sighting of fewer than ``radius_min_returns`` returns is fitted with its pole's
+    mean radius once ``radius_min_sightings`` have gone into that. Matching:
     ``gate_m`` and ``gate_chi2``; ``new_chi2`` above which a sighting is no known pole. Learning:
     ``confirm_sightings`` in a row within ``confirm_sd_m`` (sd of the positions), ``confirm_drift_m`` (first
     to last), a candidate forgotten after ``candidate_timeout_s`` unseen; at most ``max_landmarks`` poles and walls. A sighting's
@@ -74,6 +80,11 @@ class PoleSlamParams:
     candidate_radius_m: float = 0.15
     candidate_timeout_s: float = 1.0
     max_landmarks: int = 300
+    # a scan's radius of a pole comes from the width of its silhouette, quantised by the beam spacing (TiM310, 16 cm
+    # poles at 1-4 m: it scatters 8-13 mm; the centre's range scatters 13-17 mm fitted with it, 10-15 mm fitted
+    # with the true radius)
+    radius_min_returns: int = 4
+    radius_min_sightings: int = 5
     range_sigma_m: float = 0.03  # a sighting's noise: the fitted centres of 16 cm poles scatter 11-24 mm in range
     bearing_sigma_rad: float = math.radians(0.5)  # and 0.2-0.4 deg in bearing beyond 1 m (TiM310, 1 deg beams)
     # walls: straight stretches at least wall_min_m long of wall_min_returns returns, fitted within wall_rms_m
@@ -103,11 +114,24 @@ class PoleSlamParams:
 
 @dataclass(frozen=True)
 class PoleSighting:
-    """A pole in a scan: its centre's range and bearing from the laser (m, rad) and its radius (m)."""
+    """A pole in a scan: its centre's range and bearing from the laser (m, rad), its radius (m) and the returns
+    it was fitted to (laser frame, (n, 2) m)."""
 
     range_m: float
     bearing_rad: float
     radius_m: float
+    returns_xy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)), compare=False, repr=False)
+
+    @property
+    def returns(self) -> int:
+        return len(self.returns_xy)
+
+    def with_radius(self, radius_m: float) -> PoleSighting:
+        """The same returns fitted with a circle of ``radius_m``."""
+        if self.returns == 0:
+            return self
+        cx, cy = fit_post_centre(self.returns_xy[:, 0], self.returns_xy[:, 1], radius_m)
+        return PoleSighting(math.hypot(cx, cy), math.atan2(cy, cx), radius_m, self.returns_xy)
 
 
 def detect_poles(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: float = math.inf,
@@ -131,10 +155,12 @@ def detect_poles(ranges_m: FloatArray, angles_rad: FloatArray, range_max_m: floa
         if j - i + 1 >= p.min_returns and left > near + p.jump_m and right > near + p.jump_m:
             xs, ys = rr[run] * np.cos(a[run]), rr[run] * np.sin(a[run])
             width = math.hypot(float(xs[-1] - xs[0]), float(ys[-1] - ys[0]))
-            if width <= p.max_width_m:
-                rad = min(max(0.5 * (width + float(rr[run].mean()) * spacing), p.radius_m[0]), p.radius_m[1])
+            # a silhouette wider than the largest pole is no pole (a barrel, a bush seen edge-on): a centre fitted
+            # with a clamped radius would stand in front of the real one and move as the robot passes
+            rad = max(0.5 * (width + float(rr[run].mean()) * spacing), p.radius_m[0])
+            if width <= p.max_width_m and rad <= p.radius_m[1]:
                 cx, cy = fit_post_centre(xs, ys, rad)
-                out.append(PoleSighting(math.hypot(cx, cy), math.atan2(cy, cx), rad))
+                out.append(PoleSighting(math.hypot(cx, cy), math.atan2(cy, cx), rad, np.column_stack([xs, ys])))
     return out
 
 
@@ -246,6 +272,8 @@ class PoleSlam:
         # the start pose is the origin of the map the poles are learnt in: known to the millimetre
         self.P: FloatArray = np.diag([1e-6, 1e-6, 1e-8])
         self.radii: list[float] = []  # per landmark: a pole's radius (0 for a wall)
+        self._radius_sum: list[float] = []  # per landmark: the sum and count of the radii of its sightings
+        self._radius_n: list[int] = []
         self.kinds: list[str] = []  # per landmark: "pole" (centre x, y) or "wall" (rho, alpha in the world)
         self._wall_cands: list[_WallCandidate] = []
         self.stamp_s: float | None = None
@@ -282,13 +310,11 @@ class PoleSlam:
         """Correct with the poles and walls of one scan taken at ``t_s``; returns how many matched."""
         seen = detect_poles(ranges_m, angles_rad, range_max_m, self.params)
         dt = self._dt(t_s)
-        R = np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
         taken: set[int] = set()
         matched: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # (innovation, H, R) of each match
-        unknown = self._match(seen, self._best_match, dt, R, taken, matched)
+        unknown = self._match(seen, self._best_match, dt, taken, matched)
         walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
-        Rw = np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
-        new_walls = self._match(walls, self._best_wall, dt, Rw, taken, matched)
+        new_walls = self._match(walls, self._best_wall, dt, taken, matched)
         if matched:
             self._update(matched)
             self.sighted += len(matched)
@@ -296,19 +322,19 @@ class PoleSlam:
             if self.state != OK:
                 self.state, self.reason = OK, ""
         if self.state != LOST:  # a robot far off its estimate would learn poles at the wrong place
-            self._learn(unknown, t_s, dt, R)
-            self._learn_walls(new_walls, t_s, dt, Rw)
+            self._learn(unknown, t_s, dt)
+            self._learn_walls(new_walls, t_s, dt, self._wall_noise)
         return len(matched)
 
-    def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, FloatArray, set[int]], _Match | None], dt: float,
-               R: FloatArray, taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[Sg]:
+    def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, set[int]], _Match | None], dt: float,
+               taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[Sg]:
         """Each sighting to its best landmark (``best_of``): matched ones go into ``matched`` (their landmark into
         ``taken``); returns the sightings far from every landmark (candidates to learn)."""
         unknown: list[Sg] = []
         for sg in sightings:
-            best = best_of(sg, dt, R, taken)
+            best = best_of(sg, dt, taken)
             if best is not None and best[0] < self.params.gate_chi2:
-                _, k, nu, H, _ = best
+                _, k, nu, H, _, R = best
                 matched.append((nu, H, R))
                 taken.add(k)
             elif best is None or best[0] > self.params.new_chi2:
@@ -419,8 +445,16 @@ class PoleSlam:
             H[:, 3 + 2 * k + i] = dz / eps
         return H
 
-    def _best_wall(self, ws: WallSighting, dt: float, R: FloatArray,
-                   taken: set[int]) -> _Match | None:
+    @property
+    def _wall_noise(self) -> FloatArray:
+        return np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
+
+    @property
+    def _pole_noise(self) -> FloatArray:
+        """A pole sighting's covariance (range, bearing)."""
+        return np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
+
+    def _best_wall(self, ws: WallSighting, dt: float, taken: set[int]) -> _Match | None:
         """The learnt wall nearest the sighting in Mahalanobis distance among those within 0.3 m and
         ``wall_gate_rad``."""
         best: _Match | None = None
@@ -432,11 +466,10 @@ class PoleSlam:
             nu = np.array([ws.rho_m - zh[0], norm_angle_rad(ws.alpha_rad - float(zh[1]))])
             if abs(nu[0]) > 0.3 or abs(nu[1]) > self.params.wall_gate_rad:
                 continue
-            best = self._better(best, k, nu, dt, R)
+            best = self._better(best, k, nu, dt, self._wall_noise)
         return best
 
-    def _best_match(self, sg: PoleSighting, dt: float, R: FloatArray,
-                    taken: set[int]) -> _Match | None:
+    def _best_match(self, sg: PoleSighting, dt: float, taken: set[int]) -> _Match | None:
         """The learnt pole nearest the sighting in Mahalanobis distance among those within ``gate_m``."""
         best: _Match | None = None
         pose = self.X[:3]
@@ -452,18 +485,33 @@ class PoleSlam:
             if k in taken:
                 continue
             zh = self._h(pose, self.X[3 + 2 * k: 5 + 2 * k], dt)
-            nu = np.array([sg.range_m - zh[0], norm_angle_rad(sg.bearing_rad - float(zh[1]))])
-            if abs(nu[0]) > gate or abs(nu[1]) * sg.range_m > gate:
+            sk = self._fitted(sg, k)
+            nu = np.array([sk.range_m - zh[0], norm_angle_rad(sk.bearing_rad - float(zh[1]))])
+            if abs(nu[0]) > gate or abs(nu[1]) * sk.range_m > gate:
                 continue
-            best = self._better(best, k, nu, dt, R)
+            best = self._better(best, k, nu, dt, self._pole_noise)
+        if best is not None and best[0] < self.params.gate_chi2:
+            k = best[1]
+            self._radius_sum[k] += sg.radius_m
+            self._radius_n[k] += 1
+            if self._radius_n[k] >= self.params.radius_min_sightings:
+                self.radii[k] = self._radius_sum[k] / self._radius_n[k]
         return best
+
+    def _fitted(self, sg: PoleSighting, k: int) -> PoleSighting:
+        """Sighting ``sg`` as pole ``k`` would be seen: a sighting of few returns fitted with the pole's radius once
+        that is learnt (``radius_min_returns``, ``radius_min_sightings``)."""
+        p = self.params
+        if sg.returns >= p.radius_min_returns or self._radius_n[k] < p.radius_min_sightings:
+            return sg
+        return sg.with_radius(self.radii[k])
 
     def _better(self, best: _Match | None, k: int, nu: FloatArray, dt: float, R: FloatArray) -> _Match:
         """``best`` or landmark ``k`` with innovation ``nu``, whichever is nearer in Mahalanobis distance."""
         H = self._jacobian(k, dt)
         S = self._innovation_cov(H, k, R)
         m = float(nu @ np.linalg.solve(S, nu))
-        return (m, k, nu, H, S) if best is None or m < best[0] else best
+        return (m, k, nu, H, S, R) if best is None or m < best[0] else best
 
     def _innovation_cov(self, H: FloatArray, k: int, R: FloatArray) -> FloatArray:
         """H P H^T + R from the pose's and landmark ``k``'s columns only (H is zero elsewhere)."""
@@ -473,7 +521,7 @@ class PoleSlam:
         return out
 
     # ---- learning poles --------------------------------------------------------------------------
-    def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float, R: FloatArray) -> None:
+    def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float) -> None:
         p = self.params
         self._cands = [c for c in self._cands if t_s - c.last_t_s < p.candidate_timeout_s]
         for sg in unknown:
@@ -494,7 +542,8 @@ class PoleSlam:
                 continue
             if float(xy.std(axis=0).max()) < p.confirm_sd_m and math.hypot(*(xy[-1] - xy[0])) < p.confirm_drift_m:
                 if len(self.kinds) < p.max_landmarks:
-                    self._add_pole(sg, dt, R)
+                    self._add_landmark(np.array([sg.range_m, sg.bearing_rad]), dt, self._pole_noise, "pole",
+                                       sg.radius_m)
                 self._cands.remove(hit)
             elif len(xy) > 2 * p.confirm_sightings + 2:  # it keeps moving: not a pole
                 self._cands.remove(hit)
@@ -538,9 +587,6 @@ class PoleSlam:
                         self._add_landmark(np.array([ws.rho_m, ws.alpha_rad]), dt, R, "wall", 0.0)
                 self._wall_cands.remove(hit)
 
-    def _add_pole(self, sg: PoleSighting, dt: float, R: FloatArray) -> None:
-        self._add_landmark(np.array([sg.range_m, sg.bearing_rad]), dt, R, "pole", sg.radius_m)
-
     def _add_landmark(self, z: FloatArray, dt: float, R: FloatArray, kind: str, radius_m: float) -> None:
         """The landmark of sighting ``z`` into the state, its covariance from the pose's and the sighting's."""
         pose = self.X[:3].copy()
@@ -572,4 +618,6 @@ class PoleSlam:
         self.X = np.concatenate([self.X, l0])
         self.P = P
         self.radii.append(radius_m)
+        self._radius_sum.append(0.0)
+        self._radius_n.append(0)
         self.kinds.append(kind)
