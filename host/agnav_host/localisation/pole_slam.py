@@ -344,7 +344,7 @@ class PoleSlam:
     def _update(self, matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> None:
         """One EKF update with every match of a scan (innovation, H, R each), gated on the state before it. One
         update of the stacked rows reads and writes the covariance once: a sighting at a time costs the whole
-        covariance per sighting (a median of 32 ms a scan at 200-240 poles against 6.8 ms)."""
+        covariance per sighting (a median of 32 ms a scan at 200-240 poles against 7 ms)."""
         H = np.vstack([m[1] for m in matched])
         nu = np.concatenate([m[0] for m in matched])
         R = np.zeros((len(nu), len(nu)))
