@@ -470,7 +470,9 @@ class PoleSlam:
         return best
 
     def _best_match(self, sg: PoleSighting, dt: float, taken: set[int]) -> _Match | None:
-        """The learnt pole nearest the sighting in Mahalanobis distance among those within ``gate_m``."""
+        """The learnt pole nearest the sighting in Mahalanobis distance among those within ``gate_m`` (the
+        sighting fitted as that pole would be seen, :meth:`_fitted`); a match within ``gate_chi2`` adds the
+        sighting's radius to the pole's mean."""
         best: _Match | None = None
         pose = self.X[:3]
         gate = self.params.gate_m
