@@ -89,7 +89,7 @@ class PoleSlamParams:
     bearing_sigma_rad: float = math.radians(0.5)  # and 0.2-0.4 deg in bearing beyond 1 m (TiM310, 1 deg beams)
     # walls: straight stretches at least wall_min_m long of wall_min_returns returns, fitted within wall_rms_m
     walls: bool = True
-    wall_min_m: float = 1.0
+    wall_min_m: float = 0.6
     wall_min_returns: int = 10
     wall_rms_m: float = 0.02
     wall_sigma_m: float = 0.03
