@@ -51,8 +51,8 @@ from .pose_filter import FilterParams, extrapolate, odometry_step, relative
 __all__ = ["PoleSlamParams", "PoleSighting", "WallSighting", "PoleSlam", "detect_poles", "detect_walls"]
 
 OK, SLOW, LOST = "ok", "slow", "lost"
-#: a match: (Mahalanobis distance, landmark index, innovation, H, S, the sighting's covariance R)
-_Match = tuple[float, int, FloatArray, FloatArray, FloatArray, FloatArray]
+#: a match: (Mahalanobis distance, landmark index, innovation, H, S)
+_Match = tuple[float, int, FloatArray, FloatArray, FloatArray]
 
 
 @dataclass(frozen=True)
@@ -310,11 +310,13 @@ class PoleSlam:
         """Correct with the poles and walls of one scan taken at ``t_s``; returns how many matched."""
         seen = detect_poles(ranges_m, angles_rad, range_max_m, self.params)
         dt = self._dt(t_s)
+        R = np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
         taken: set[int] = set()
         matched: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # (innovation, H, R) of each match
-        unknown = self._match(seen, self._best_match, dt, taken, matched)
+        unknown = self._match(seen, self._best_match, dt, R, taken, matched, self._add_radius)
         walls = detect_walls(ranges_m, angles_rad, range_max_m, self.params) if self.params.walls else []
-        new_walls = self._match(walls, self._best_wall, dt, taken, matched)
+        Rw = np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
+        new_walls = self._match(walls, self._best_wall, dt, Rw, taken, matched)
         if matched:
             self._update(matched)
             self.sighted += len(matched)
@@ -322,21 +324,25 @@ class PoleSlam:
             if self.state != OK:
                 self.state, self.reason = OK, ""
         if self.state != LOST:  # a robot far off its estimate would learn poles at the wrong place
-            self._learn(unknown, t_s, dt)
-            self._learn_walls(new_walls, t_s, dt, self._wall_noise)
+            self._learn(unknown, t_s, dt, R)
+            self._learn_walls(new_walls, t_s, dt, Rw)
         return len(matched)
 
-    def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, set[int]], _Match | None], dt: float,
-               taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[Sg]:
-        """Each sighting to its best landmark (``best_of``): matched ones go into ``matched`` (their landmark into
-        ``taken``); returns the sightings far from every landmark (candidates to learn)."""
+    def _match(self, sightings: list[Sg], best_of: Callable[[Sg, float, FloatArray, set[int]], _Match | None],
+               dt: float, R: FloatArray, taken: set[int], matched: list[tuple[FloatArray, FloatArray, FloatArray]],
+               on_match: Callable[[Sg, int], None] | None = None) -> list[Sg]:
+        """Each sighting (covariance ``R``) to its best landmark (``best_of``): matched ones go into ``matched``
+        (their landmark into ``taken``, and to ``on_match``); returns the sightings far from every landmark
+        (candidates to learn)."""
         unknown: list[Sg] = []
         for sg in sightings:
-            best = best_of(sg, dt, taken)
+            best = best_of(sg, dt, R, taken)
             if best is not None and best[0] < self.params.gate_chi2:
-                _, k, nu, H, _, R = best
+                _, k, nu, H, _ = best
                 matched.append((nu, H, R))
                 taken.add(k)
+                if on_match is not None:
+                    on_match(sg, k)
             elif best is None or best[0] > self.params.new_chi2:
                 unknown.append(sg)
         return unknown
@@ -445,16 +451,7 @@ class PoleSlam:
             H[:, 3 + 2 * k + i] = dz / eps
         return H
 
-    @property
-    def _wall_noise(self) -> FloatArray:
-        return np.diag([self.params.wall_sigma_m ** 2, self.params.wall_sigma_rad ** 2])
-
-    @property
-    def _pole_noise(self) -> FloatArray:
-        """A pole sighting's covariance (range, bearing)."""
-        return np.diag([self.params.range_sigma_m ** 2, self.params.bearing_sigma_rad ** 2])
-
-    def _best_wall(self, ws: WallSighting, dt: float, taken: set[int]) -> _Match | None:
+    def _best_wall(self, ws: WallSighting, dt: float, R: FloatArray, taken: set[int]) -> _Match | None:
         """The learnt wall nearest the sighting in Mahalanobis distance among those within 0.3 m and
         ``wall_gate_rad``."""
         best: _Match | None = None
@@ -466,13 +463,12 @@ class PoleSlam:
             nu = np.array([ws.rho_m - zh[0], norm_angle_rad(ws.alpha_rad - float(zh[1]))])
             if abs(nu[0]) > 0.3 or abs(nu[1]) > self.params.wall_gate_rad:
                 continue
-            best = self._better(best, k, nu, dt, self._wall_noise)
+            best = self._better(best, k, nu, dt, R)
         return best
 
-    def _best_match(self, sg: PoleSighting, dt: float, taken: set[int]) -> _Match | None:
+    def _best_match(self, sg: PoleSighting, dt: float, R: FloatArray, taken: set[int]) -> _Match | None:
         """The learnt pole nearest the sighting in Mahalanobis distance among those within ``gate_m`` (the
-        sighting fitted as that pole would be seen, :meth:`_fitted`); a match within ``gate_chi2`` adds the
-        sighting's radius to the pole's mean."""
+        sighting fitted as that pole would be seen, :meth:`_fitted`)."""
         best: _Match | None = None
         pose = self.X[:3]
         gate = self.params.gate_m
@@ -491,14 +487,16 @@ class PoleSlam:
             nu = np.array([sk.range_m - zh[0], norm_angle_rad(sk.bearing_rad - float(zh[1]))])
             if abs(nu[0]) > gate or abs(nu[1]) * sk.range_m > gate:
                 continue
-            best = self._better(best, k, nu, dt, self._pole_noise)
-        if best is not None and best[0] < self.params.gate_chi2:
-            k = best[1]
-            self._radius_sum[k] += sg.radius_m
-            self._radius_n[k] += 1
-            if self._radius_n[k] >= self.params.radius_min_sightings:
-                self.radii[k] = self._radius_sum[k] / self._radius_n[k]
+            best = self._better(best, k, nu, dt, R)
         return best
+
+    def _add_radius(self, sg: PoleSighting, k: int) -> None:
+        """A sighting matched to pole ``k``: its radius into the pole's mean, which is the pole's radius once
+        ``radius_min_sightings`` have gone into it."""
+        self._radius_sum[k] += sg.radius_m
+        self._radius_n[k] += 1
+        if self._radius_n[k] >= self.params.radius_min_sightings:
+            self.radii[k] = self._radius_sum[k] / self._radius_n[k]
 
     def _fitted(self, sg: PoleSighting, k: int) -> PoleSighting:
         """Sighting ``sg`` as pole ``k`` would be seen: a sighting of few returns fitted with the pole's radius once
@@ -513,7 +511,7 @@ class PoleSlam:
         H = self._jacobian(k, dt)
         S = self._innovation_cov(H, k, R)
         m = float(nu @ np.linalg.solve(S, nu))
-        return (m, k, nu, H, S, R) if best is None or m < best[0] else best
+        return (m, k, nu, H, S) if best is None or m < best[0] else best
 
     def _innovation_cov(self, H: FloatArray, k: int, R: FloatArray) -> FloatArray:
         """H P H^T + R from the pose's and landmark ``k``'s columns only (H is zero elsewhere)."""
@@ -523,7 +521,7 @@ class PoleSlam:
         return out
 
     # ---- learning poles --------------------------------------------------------------------------
-    def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float) -> None:
+    def _learn(self, unknown: list[PoleSighting], t_s: float, dt: float, R: FloatArray) -> None:
         p = self.params
         self._cands = [c for c in self._cands if t_s - c.last_t_s < p.candidate_timeout_s]
         for sg in unknown:
@@ -544,8 +542,7 @@ class PoleSlam:
                 continue
             if float(xy.std(axis=0).max()) < p.confirm_sd_m and math.hypot(*(xy[-1] - xy[0])) < p.confirm_drift_m:
                 if len(self.kinds) < p.max_landmarks:
-                    self._add_landmark(np.array([sg.range_m, sg.bearing_rad]), dt, self._pole_noise, "pole",
-                                       sg.radius_m)
+                    self._add_landmark(np.array([sg.range_m, sg.bearing_rad]), dt, R, "pole", sg.radius_m)
                 self._cands.remove(hit)
             elif len(xy) > 2 * p.confirm_sightings + 2:  # it keeps moving: not a pole
                 self._cands.remove(hit)
