@@ -163,7 +163,7 @@ void link_send_statustext_n(uint8_t severity, const UNITS_ROM char *text, uint8_
 /* Hand one received byte stream chunk to the parser (used by link_poll and by tests). */
 void link_feed(const uint8_t *data, uint16_t len, uint32_t now_ms);
 
-/* Map a 1000..2000 us RC channel to -full..+full around 1500 (a +-20 us dead zone);
+/* Map a 1000..2000 us RC channel to -full..+full around 1500 (pulses within 20 us of 1500 map to 0);
  * 0 and UINT16_MAX mean "released". Exposed for tests. */
 int16_t link_rc_to_range(uint16_t pulse_us, int16_t full);
 

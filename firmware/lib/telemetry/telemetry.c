@@ -18,7 +18,7 @@ static uint32_t s_sent_ms;
 static uint8_t s_stats_next;   /* scheduler row of the next "T_<task>" report */
 static uint8_t s_telem1_phase; /* the next 1 Hz message, 0..3 */
 static uint8_t s_telem_slot;   /* 0..4 */
-static uint8_t s_telem_round;  /* 0..9 */
+static uint8_t s_telem_cycle;  /* 0..9 */
 static bool s_telem_yielded;   /* the last call left its slot to the link */
 
 static void send(mavlink_message_t *msg) { (void)link_send(msg); }
@@ -29,7 +29,7 @@ void telemetry_reset(void)
     s_sent_ms = 0u;
     s_stats_next = 0u;
     s_telem1_phase = 0u;
-    s_telem_slot = s_telem_round = 0u;
+    s_telem_slot = s_telem_cycle = 0u;
 }
 
 void telemetry_task_50hz(void)
@@ -131,19 +131,19 @@ void telemetry_task(void)
     }
     s_telem_yielded = false;
     uint8_t slot = s_telem_slot;
-    uint8_t round = s_telem_round;
+    uint8_t cycle = s_telem_cycle;
     if (slot >= 4u) {
         s_telem_slot = 0u;
-        s_telem_round = round >= 9u ? 0u : (uint8_t)(round + 1u);
+        s_telem_cycle = cycle >= 9u ? 0u : (uint8_t)(cycle + 1u);
     } else {
         s_telem_slot = (uint8_t)(slot + 1u);
     }
     uint32_t now_ms = hal_time_ms();
     mavlink_message_t msg;
     if (slot == 0u) {
-        if ((round & 1u) == 0u && round < 8u) {
+        if ((cycle & 1u) == 0u && cycle < 8u) {
             send_telemetry_1hz();
-        } else if (round == 9u) {
+        } else if (cycle == 9u) {
             /* once a second at rest (nothing commanded, wheels still): storage upkeep that would
              * stall the loop while driving (hal.h) */
             odom_pose_t pose;
@@ -173,9 +173,9 @@ void telemetry_task(void)
                                         (int16_t)pose.heading_cdeg, (int16_t)pose.speed_mm_s,
                                         (int16_t)pose.yaw_rate_cdeg_s);
         send(&msg);
-    } else if (round == 4u || round == 9u) {
+    } else if (cycle == 4u || cycle == 9u) {
         send_encoder_status(now_ms);
-    } else if (round == 1u || round == 6u) {
+    } else if (cycle == 1u || cycle == 6u) {
         /* The standard LOCAL_POSITION_NED for ground stations (NED from REP-103: y_east = -y_left). */
         int32_t c = behaviour_cos_q14(pose.heading_cdeg), sn = behaviour_sin_q14(pose.heading_cdeg);
         float v = (float)pose.speed_mm_s * 0.001f;

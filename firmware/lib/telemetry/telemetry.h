@@ -6,16 +6,16 @@
  *                              TELEMETRY_STATUS_KEEPALIVE_MS (all 50 per second would take 1.2 kB/s
  *                              of the ~1.5 kB/s a 57600-baud radio has for telemetry).
  *   telemetry_task()           the 10 Hz and 1 Hz messages, one frame per 20 ms call in a fixed
- *                              rotation of five slots per 100 ms round (docs/safety.md "Signing":
+ *                              rotation of five slots per 100 ms cycle (docs/safety.md "Signing":
  *                              with SIGN_TELEM each signed frame costs ~5.7 ms of SHA-256 on the AVR;
  *                              one per tick, after the control tick and BEHAVIOUR_STATUS, leaves the
  *                              rest of the 20 ms period to the link task's verification):
- *                                slot 0: the 1 Hz messages, one per 200 ms (rounds 0, 2, 4, 6 of each
+ *                                slot 0: the 1 Hz messages, one per 200 ms (cycles 0, 2, 4, 6 of each
  *                                        second: HEARTBEAT, SYS_STATUS, NAMED_VALUE_INT "HEALTH",
- *                                        NAMED_VALUE_INT "T_<task>"); round 9: storage upkeep at rest
+ *                                        NAMED_VALUE_INT "T_<task>"); cycle 9: storage upkeep at rest
  *                                slot 1: AGNAV_ODOMETRY (10 Hz)
- *                                slot 2: AGNAV_ENCODER_STATUS (2 Hz, rounds 4, 9) or
- *                                        LOCAL_POSITION_NED (2 Hz, rounds 1, 6)
+ *                                slot 2: AGNAV_ENCODER_STATUS (2 Hz, cycles 4, 9) or
+ *                                        LOCAL_POSITION_NED (2 Hz, cycles 1, 6)
  *                                slot 3: AGNAV_SONAR_RING (10 Hz, when fitted)
  *                                slot 4: nothing
  *                              A call that finds a received frame waiting leaves its slot to the link
@@ -40,7 +40,7 @@ extern "C" {
 
 #define TELEMETRY_STATUS_KEEPALIVE_MS 200u
 
-/* A fresh start: rotation at slot 0 of round 0, the 1 Hz messages from HEARTBEAT, the task report
+/* A fresh start: rotation at slot 0 of cycle 0, the 1 Hz messages from HEARTBEAT, the task report
  * from the scheduler's first row, no BEHAVIOUR_STATUS sent yet. */
 void telemetry_reset(void);
 
