@@ -80,9 +80,8 @@ class PoleSlamParams:
     candidate_radius_m: float = 0.15
     candidate_timeout_s: float = 1.0
     max_landmarks: int = 300
-    # a scan's radius of a pole comes from the width of its silhouette, quantised by the beam spacing (TiM310, 16 cm
-    # poles at 1-4 m: it scatters 8-13 mm; the centre's range scatters 13-17 mm fitted with it, 10-15 mm fitted
-    # with the true radius)
+    # a scan's radius of a pole comes from the width of its silhouette, quantised by the beam spacing, and the
+    # centre's range moves with it
     radius_min_returns: int = 4
     radius_min_sightings: int = 5
     range_sigma_m: float = 0.03  # a sighting's noise: the fitted centres of 16 cm poles scatter 11-24 mm in range
